@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# One entry point for a fresh machine (Python 3.11, gcc, apt):
+#   ./run.sh demo   set up, then trace -> identify -> FMU -> validate -> report
+#   ./run.sh test   set up, then the whole test suite
+#   ./run.sh bench  set up, then the benchmarks (JSON + table in benchmarks/results/)
+# Everything the project needs is installed here: the venv, the Python packages
+# and, through apt, the system packages the tests use (TBB for the ecos engine,
+# valgrind, the mingw-w64 cross compiler for win64 FMU binaries).
+set -euo pipefail
+cd "$(dirname "$0")"
+VENV=.venv
+PY=${PYTHON:-python3.11}
+command -v "$PY" >/dev/null || PY=python3
+
+apt_install() {
+    local missing=()
+    for pkg in "$@"; do
+        dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg")
+    done
+    [ ${#missing[@]} -eq 0 ] && return 0
+    local sudo=""
+    [ "$(id -u)" -ne 0 ] && sudo="sudo"
+    echo "run.sh: apt-get install ${missing[*]}"
+    $sudo apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+}
+
+setup() {
+    if [ ! -x "$VENV/bin/python" ]; then
+        "$PY" -m venv "$VENV"
+    fi
+    local stamp="$VENV/.installed-$(sha1sum pyproject.toml | cut -c1-12)-$1"
+    if [ ! -f "$stamp" ]; then
+        "$VENV/bin/python" -m pip install -q --upgrade pip
+        if [ "$1" = test ]; then
+            "$VENV/bin/python" -m pip install -q -e ".[test]"
+        else
+            "$VENV/bin/python" -m pip install -q -e .
+        fi
+        touch "$stamp"
+    fi
+}
+
+cmd=${1:-demo}
+shift || true
+case "$cmd" in
+    demo)
+        setup demo
+        "$VENV/bin/fdid" demo --out out/demo "$@"
+        ;;
+    test)
+        apt_install libtbb12 valgrind gcc-mingw-w64-x86-64
+        setup test
+        "$VENV/bin/python" -m pytest -n 2 -q "$@"
+        ;;
+    bench)
+        setup test
+        for b in benchmarks/bench_*.py; do "$VENV/bin/python" "$b" "$@"; done
+        ;;
+    *)
+        echo "usage: ./run.sh demo|test|bench [args]" >&2
+        exit 2
+        ;;
+esac

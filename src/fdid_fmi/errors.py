@@ -1,0 +1,32 @@
+"""Errors raised for bad user input: each names the file, column/parameter and row."""
+
+
+class FdidError(Exception):
+    """Base class of the errors fdid-fmi raises on purpose."""
+
+
+class InputError(FdidError, ValueError):
+    """Bad input data or parameter, with the place it was found.
+
+    Parameters
+    ----------
+    message : str
+        What was wrong and what was expected.
+    source : str, optional
+        File (or object) the input came from.
+    column : str, optional
+        Column / channel / parameter name.
+    row : int, optional
+        1-based data row (as a spreadsheet would show it), when known.
+    """
+
+    def __init__(self, message, source=None, column=None, row=None):
+        self.source, self.column, self.row = source, column, row
+        where = []
+        if source:
+            where.append(f"{source}")
+        if column is not None:
+            where.append(f"column '{column}'")
+        if row is not None:
+            where.append(f"row {row}")
+        super().__init__(f"{': '.join([', '.join(where), message]) if where else message}")

@@ -1,0 +1,1 @@
+"""Identification methods (thesis ch. 3, 4, 5)."""

@@ -1,0 +1,1 @@
+"""Trace readers: CSV/TXT, thesis GUI layouts, MATLAB .mat (EMPS), SINUMERIK servo-trace XML."""

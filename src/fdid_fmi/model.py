@@ -1,0 +1,331 @@
+"""``DriveModel``: the identified drive as an unscaled discrete MIMO state space with friction.
+
+The LTI part (thesis Eqn 5.18-5.25, returned UNSCALED) is
+
+    xi[k+1] = A xi[k] + B u[k]
+    y[k]    = C xi[k] + D u[k]
+
+with inputs ``u`` and outputs ``y`` described by :class:`Port` lists. Input kinds:
+
+``command``   commanded position x_r of an axis (mm); an FMU input.
+``external``  a measured extra input (e.g. EMPS ``pulses_N``); an FMU input.
+``friction``  normalised Coulomb friction d_nf = L * sat(v / v_tilde) (Eqn 4.12-4.13), closed
+              around the model's own velocity v of the axis and solved exactly at each step.
+``feature``   a nonlinear function of the previous step's velocity or of the position
+              (``params["function"]``: ``sat``, ``abs_sat``, ``stribeck``, ``sin_position``,
+              ``cos_position``); used by effects that diagnosis adds.
+
+Output kinds: ``position`` (required per axis), ``error`` (x_r - x), ``velocity``,
+``tool_position``, ``acceleration``, ``other``. The simulation semantics that use these
+live in :mod:`fdid_fmi.simulate`; the FMU implements exactly the same.
+
+Models are saved as versioned JSON (:meth:`DriveModel.save` / :func:`load_model`).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+FORMAT = "fdid-fmi-model"
+FORMAT_VERSION = 1
+INPUT_KINDS = ("command", "external", "friction", "feature")
+OUTPUT_KINDS = ("position", "error", "velocity", "tool_position", "acceleration", "other")
+FEATURE_FUNCTIONS = ("sat", "abs_sat", "stribeck", "sin_position", "cos_position")
+
+
+@dataclass
+class Port:
+    """An input or output of the LTI part.
+
+    Attributes
+    ----------
+    name : str      e.g. ``x_cmd``, ``x_dnf``, ``x_pos``, ``x_err``, ``x_vel``
+    unit : str      canonical unit (``mm``, ``mm_s``, ``1``, ...)
+    kind : str      one of INPUT_KINDS / OUTPUT_KINDS
+    axis : str or None
+    params : dict   friction: ``v_tilde`` [mm/s], ``level`` [-];
+                    feature: ``function``, ``v_tilde``, ``v_s`` [mm/s], ``period_mm``,
+                    ``source`` (``command`` or ``position``)
+    description : str
+    """
+
+    name: str
+    unit: str
+    kind: str
+    axis: str | None = None
+    params: dict = field(default_factory=dict)
+    description: str = ""
+
+
+@dataclass
+class DriveModel:
+    """Identified feed-drive model (see module docstring).
+
+    Attributes
+    ----------
+    Ts : float, s
+    A, B, C, D : ndarray, the unscaled discrete state space
+    inputs, outputs : list[Port]
+    method : str                 identification method (``pole-search``, ``mimo``, ``full-ls``...)
+    poles : list[complex]        continuous poles, rad/s (of all blocks)
+    identification : dict        method details: blocks, denominators, continuous numerators,
+                                 tracking-TF zeros, search record
+    metrics : dict               fit figures (training RMS etc.)
+    effects : list[dict]         effects added by diagnosis (``kind`` + parameters)
+    provenance : dict            data file hashes, ranges, software version
+    """
+
+    Ts: float
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    inputs: list
+    outputs: list
+    method: str = ""
+    poles: list = field(default_factory=list)
+    identification: dict = field(default_factory=dict)
+    metrics: dict = field(default_factory=dict)
+    effects: list = field(default_factory=list)
+    provenance: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.A = np.atleast_2d(np.asarray(self.A, dtype=float))
+        n = self.A.shape[0]
+        self.B = np.asarray(self.B, dtype=float).reshape(n, -1)
+        self.C = np.asarray(self.C, dtype=float).reshape(-1, n)
+        self.D = np.asarray(self.D, dtype=float).reshape(self.C.shape[0], self.B.shape[1])
+        self.inputs = [p if isinstance(p, Port) else Port(**p) for p in self.inputs]
+        self.outputs = [p if isinstance(p, Port) else Port(**p) for p in self.outputs]
+        self.poles = [complex(p) if not isinstance(p, (list, tuple)) else complex(p[0], p[1])
+                      for p in self.poles]
+        self.validate()
+
+    # ----------------------------------------------------------- structure
+    @property
+    def n_states(self):
+        return self.A.shape[0]
+
+    @property
+    def axes(self):
+        """Axes in the order of their command inputs."""
+        return [p.axis for p in self.inputs if p.kind == "command"]
+
+    def input_index(self, kind, axis=None, name=None):
+        return _find(self.inputs, kind, axis, name)
+
+    def output_index(self, kind, axis=None, name=None):
+        return _find(self.outputs, kind, axis, name)
+
+    def validate(self):
+        """Check shapes, kinds and per-axis completeness; raise InputError if inconsistent."""
+        n, m, p = self.A.shape[0], self.B.shape[1], self.C.shape[0]
+        if self.A.shape != (n, n):
+            raise InputError(f"A must be square, got {self.A.shape}", column="A")
+        if len(self.inputs) != m or len(self.outputs) != p:
+            raise InputError(f"B/C/D have {m} inputs and {p} outputs but the model lists "
+                             f"{len(self.inputs)} inputs and {len(self.outputs)} outputs", column="inputs")
+        for arr, nm in ((self.A, "A"), (self.B, "B"), (self.C, "C"), (self.D, "D")):
+            if not np.isfinite(arr).all():
+                raise InputError("contains NaN or inf", column=nm)
+        if not (np.isfinite(self.Ts) and self.Ts > 0):
+            raise InputError(f"sample time must be positive, got {self.Ts!r}", column="Ts")
+        for prt in self.inputs:
+            if prt.kind not in INPUT_KINDS:
+                raise InputError(f"input kind '{prt.kind}' not in {INPUT_KINDS}", column=prt.name)
+            if prt.kind == "friction":
+                if prt.axis not in self.axes:
+                    raise InputError("friction input has no command input for its axis", column=prt.name)
+                if not prt.params.get("v_tilde", 0) > 0:
+                    raise InputError("friction input needs a positive v_tilde [mm/s]", column=prt.name)
+                prt.params.setdefault("level", 1.0)
+            if prt.kind == "feature" and prt.params.get("function") not in FEATURE_FUNCTIONS:
+                raise InputError(f"feature function must be one of {FEATURE_FUNCTIONS}", column=prt.name)
+        for prt in self.outputs:
+            if prt.kind not in OUTPUT_KINDS:
+                raise InputError(f"output kind '{prt.kind}' not in {OUTPUT_KINDS}", column=prt.name)
+        for ax in self.axes:
+            if self.output_index("position", ax) is None:
+                raise InputError(f"axis '{ax}' has no position output", column=ax)
+        if len(set(p.name for p in self.inputs)) != m or len(set(p.name for p in self.outputs)) != p:
+            raise InputError("input and output names must be unique", column="names")
+        rho = max(abs(np.linalg.eigvals(self.A))) if n else 0.0
+        if rho >= 1.0:
+            raise InputError(f"the model is not stable (spectral radius of A = {rho:.6f})", column="A")
+
+    # ------------------------------------------------ steady-state helpers
+    def steady_state_maps(self):
+        """Matrices for the ramp steady state and the d.c. gain.
+
+        Returns
+        -------
+        S : (I - A)^-1 B          state per unit constant input
+        S2 : (I - A)^-1 S         state correction per unit input increment per step
+        G1 : C S + D              d.c. gain of every input/output pair
+        """
+        n = self.n_states
+        if n == 0:
+            return np.zeros((0, self.B.shape[1])), np.zeros((0, self.B.shape[1])), self.D.copy()
+        IA = np.eye(n) - self.A
+        S = np.linalg.solve(IA, self.B)
+        S2 = np.linalg.solve(IA, S)
+        return S, S2, self.C @ S + self.D
+
+    # --------------------------------------------------------------- JSON
+    def to_dict(self):
+        return {
+            "format": FORMAT, "format_version": FORMAT_VERSION, "kind": "state_space",
+            "Ts": self.Ts, "method": self.method,
+            "A": self.A.tolist(), "B": self.B.tolist(), "C": self.C.tolist(), "D": self.D.tolist(),
+            "inputs": [asdict(p) for p in self.inputs], "outputs": [asdict(p) for p in self.outputs],
+            "poles": [[p.real, p.imag] for p in self.poles],
+            "identification": _jsonable(self.identification), "metrics": _jsonable(self.metrics),
+            "effects": _jsonable(self.effects), "provenance": _jsonable(self.provenance),
+        }
+
+    def save(self, path):
+        Path(path).write_text(json.dumps(self.to_dict(), indent=1))
+        return Path(path)
+
+    def copy(self):
+        return DriveModel.from_dict(json.loads(json.dumps(self.to_dict())))
+
+    @classmethod
+    def from_dict(cls, d, source="<dict>"):
+        _check_header(d, source, "state_space")
+        keys = ("Ts", "A", "B", "C", "D", "inputs", "outputs")
+        missing = [k for k in keys if k not in d]
+        if missing:
+            raise InputError(f"model file lacks {missing}", source=source)
+        try:
+            return cls(Ts=float(d["Ts"]), A=d["A"], B=d["B"], C=d["C"], D=d["D"],
+                       inputs=d["inputs"], outputs=d["outputs"], method=d.get("method", ""),
+                       poles=d.get("poles", []), identification=d.get("identification", {}),
+                       metrics=d.get("metrics", {}), effects=d.get("effects", []),
+                       provenance=d.get("provenance", {}))
+        except InputError as exc:
+            raise InputError(str(exc), source=source) from None
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"is not a valid model: {exc}", source=source) from None
+
+    # -------------------------------------------------------- combination
+    @classmethod
+    def combine(cls, models, method=None):
+        """Block-diagonal combination of decoupled per-axis models (same Ts)."""
+        if not models:
+            raise InputError("combine needs at least one model")
+        Ts = models[0].Ts
+        for m in models:
+            if abs(m.Ts - Ts) > 1e-12 * Ts:
+                raise InputError(f"models have different sample times ({Ts} s, {m.Ts} s)", column="Ts")
+        from scipy.linalg import block_diag
+        A = block_diag(*[m.A for m in models])
+        B = block_diag(*[m.B for m in models])
+        C = block_diag(*[m.C for m in models])
+        D = block_diag(*[m.D for m in models])
+        return cls(Ts=Ts, A=A, B=B, C=C, D=D,
+                   inputs=[p for m in models for p in m.inputs],
+                   outputs=[p for m in models for p in m.outputs],
+                   method=method or "+".join(sorted(set(m.method for m in models))),
+                   poles=[p for m in models for p in m.poles],
+                   identification={"blocks": [m.identification for m in models]},
+                   metrics={"blocks": [m.metrics for m in models]},
+                   effects=[e for m in models for e in m.effects],
+                   provenance={"blocks": [m.provenance for m in models]})
+
+
+@dataclass
+class QuasiStaticModel:
+    """Quasi-static tracking-error model (thesis Eqn 3.3-3.4), one set of gains per axis.
+
+    e(t) = K_vel x_r' + K_acc x_r'' + K_jerk x_r''' with the command derivatives taken
+    through a zero-phase Butterworth filter of ``order`` and ``cutoff_hz``.
+    """
+
+    Ts: float
+    gains: dict                     # axis -> {"K_vel": s, "K_acc": s^2, "K_jerk": s^3}
+    cutoff_hz: float
+    order: int = 2
+    method: str = "quasi-static"
+    metrics: dict = field(default_factory=dict)
+    provenance: dict = field(default_factory=dict)
+
+    @property
+    def axes(self):
+        return list(self.gains)
+
+    def to_dict(self):
+        return {"format": FORMAT, "format_version": FORMAT_VERSION, "kind": "quasi_static",
+                "Ts": self.Ts, "gains": self.gains, "cutoff_hz": self.cutoff_hz, "order": self.order,
+                "method": self.method, "metrics": _jsonable(self.metrics),
+                "provenance": _jsonable(self.provenance)}
+
+    def save(self, path):
+        Path(path).write_text(json.dumps(self.to_dict(), indent=1))
+        return Path(path)
+
+    @classmethod
+    def from_dict(cls, d, source="<dict>"):
+        _check_header(d, source, "quasi_static")
+        try:
+            return cls(Ts=float(d["Ts"]), gains=d["gains"], cutoff_hz=float(d["cutoff_hz"]),
+                       order=int(d.get("order", 2)), method=d.get("method", "quasi-static"),
+                       metrics=d.get("metrics", {}), provenance=d.get("provenance", {}))
+        except KeyError as exc:
+            raise InputError(f"model file lacks {exc}", source=source) from None
+
+
+def load_model(path):
+    """Load a model JSON file written by ``save`` (state-space or quasi-static)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("model file not found", source=str(path))
+    try:
+        d = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"is not a JSON model file ({exc})", source=str(path)) from None
+    if not isinstance(d, dict):
+        raise InputError("is not a model file (expected a JSON object)", source=str(path))
+    if d.get("kind") == "quasi_static":
+        return QuasiStaticModel.from_dict(d, source=str(path))
+    return DriveModel.from_dict(d, source=str(path))
+
+
+def _check_header(d, source, kind):
+    if d.get("format") != FORMAT:
+        raise InputError(f"is not an fdid-fmi model (format '{d.get('format')}')", source=source)
+    v = d.get("format_version")
+    if not isinstance(v, int) or v > FORMAT_VERSION:
+        raise InputError(f"model format version {v!r} is newer than this software reads "
+                         f"({FORMAT_VERSION})", source=source)
+    if d.get("kind", "state_space") != kind:
+        raise InputError(f"is a '{d.get('kind')}' model, expected '{kind}'", source=source)
+
+
+def _find(ports, kind, axis, name):
+    for i, p in enumerate(ports):
+        if p.kind == kind and (axis is None or p.axis == axis) and (name is None or p.name == name):
+            return i
+    return None
+
+
+def _jsonable(obj):
+    """Recursively turn numpy / complex values into JSON-friendly ones."""
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, (complex, np.complexfloating)):
+        return [float(obj.real), float(obj.imag)]
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.floating):
+        return float(obj)
+    return obj

@@ -1,0 +1,327 @@
+"""The reference simulator: one definition of a DriveModel's free run, shared by every stage.
+
+The exported FMU implements exactly these semantics (``fmu_templates/``); the two must agree
+to ~1e-9 mm on the same input.
+
+Semantics (DESIGN.md "Simulation semantics")
+--------------------------------------------
+Offsets. Command inputs enter as deviations from their value at the first sample, u_ref; the
+d.c. response G1 u_ref (G1 = C (I-A)^-1 B + D) is added to the outputs. This keeps the states
+small whatever the absolute axis position is.
+
+Initial state. The model starts in the steady state of a ramp: each command input moves at the
+axis start velocity v0 (0 = at rest at the first commanded position; a record that starts in
+motion passes its commanded start velocity). With u[k] = u0 + k du,
+xi0 = (I-A)^-1 (B u0 - Delta), Delta = (I-A)^-1 B du. Friction inputs start at
+L sat(v0 / v_tilde); the previous position x[-1] = x[0] - v0 Ts; the previous velocity is v0.
+
+Step k, given xi, the inputs (commands, externals) and the axis states of step k-1:
+1. feature inputs from the previous step's velocity / position;
+2. friction inputs d = L sat(v / v_tilde), where the axis velocity v is either a model
+   ``velocity`` output or the backward difference (x[k] - x[k-1]) / Ts of the ``position``
+   output. v depends on d through the feed-through D, so v = alpha + beta d is affine and
+   sat is piecewise linear: the step is solved exactly by checking the branches
+   (linear / +1 / -1 for each friction input, in that order; the first consistent one wins).
+   A one-sample lag instead limit-cycles at rest when L*|beta|/v_tilde >> 1;
+3. y = C xi + D u + G1 u_ref; xi <- A xi + B u.
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+from .model import DriveModel, QuasiStaticModel
+from .trace import Trace
+
+_TOL = 1e-12
+
+
+@dataclass
+class SimResult:
+    """Free-run prediction.
+
+    Attributes
+    ----------
+    t : ndarray, s
+    y : ndarray (N, n_outputs)   all model outputs, in model units
+    u : ndarray (N, n_inputs)    the inputs actually applied (friction/feature values included)
+    axes : dict axis -> {"position", "error", "velocity", "tool_position"} arrays (mm, mm/s)
+    output_names : list[str]
+    """
+
+    t: np.ndarray
+    y: np.ndarray
+    u: np.ndarray
+    axes: dict
+    output_names: list
+
+
+class _Plan:
+    """Index bookkeeping of a DriveModel, computed once per simulation."""
+
+    def __init__(self, model: DriveModel, params=None):
+        params = params or {}
+        self.m = model
+        ins = model.inputs
+        self.axes = model.axes
+        self.cmd = {p.axis: i for i, p in enumerate(ins) if p.kind == "command"}
+        self.ext = [i for i, p in enumerate(ins) if p.kind == "external"]
+        self.fric = [i for i, p in enumerate(ins) if p.kind == "friction"]
+        self.feat = [i for i, p in enumerate(ins) if p.kind == "feature"]
+        if len(self.fric) > 4:
+            raise InputError("at most 4 friction inputs are supported", column="friction")
+        self.pos = {a: model.output_index("position", a) for a in self.axes}
+        self.err = {a: model.output_index("error", a) for a in self.axes}
+        self.tool = {a: model.output_index("tool_position", a) for a in self.axes}
+        self.vel = {a: model.output_index("velocity", a) for a in self.axes}
+        # friction parameters (overridable like the FMU parameters)
+        self.level, self.vt = [], []
+        for i in self.fric:
+            p = ins[i]
+            on = params.get(f"{p.axis}_friction_on", True)
+            lev = params.get(f"{p.axis}_friction_level", p.params.get("level", 1.0))
+            vt = params.get(f"{p.axis}_v_tilde", p.params["v_tilde"])
+            if not vt > 0:
+                raise InputError(f"v_tilde must be > 0 mm/s, got {vt!r}", column=f"{p.axis}_v_tilde")
+            self.level.append(float(lev) if on else 0.0)
+            self.vt.append(float(vt))
+        self.S, self.S2, self.G1 = model.steady_state_maps()
+        # velocity source of each friction input: (output index, divide-by-Ts?)
+        self.vsrc = []
+        for i in self.fric:
+            a = ins[i].axis
+            if self.vel[a] is not None:
+                self.vsrc.append((self.vel[a], False))
+            else:
+                self.vsrc.append((self.pos[a], True))
+        self.branches = list(itertools.product((0, 1, -1), repeat=len(self.fric)))
+
+
+def _sat(x):
+    return min(1.0, max(-1.0, x))
+
+
+def feature_value(params, v_prev, x_cmd, x_prev):
+    """Value of a ``feature`` input (see DriveModel) from the previous step's axis state."""
+    f = params["function"]
+    if f in ("sin_position", "cos_position"):
+        x = x_cmd if params.get("source", "command") == "command" else x_prev
+        arg = 2.0 * np.pi * x / params["period_mm"]
+        return float(np.sin(arg) if f == "sin_position" else np.cos(arg))
+    s = _sat(v_prev / params["v_tilde"])
+    if f == "sat":
+        return s
+    if f == "abs_sat":
+        return abs(s)
+    if f == "stribeck":
+        return s * float(np.exp(-(v_prev / params["v_s"]) ** 2))
+    raise InputError(f"unknown feature function '{f}'")
+
+
+def solve_friction(alpha, beta, level, vt, branches):
+    """Solve d_i = L_i sat((alpha_i + sum_j beta_ij d_j) / vt_i) exactly (piecewise linear).
+
+    Parameters
+    ----------
+    alpha : (m,) velocity with the friction inputs at zero
+    beta : (m, m) d velocity_i / d d_j
+    level, vt : (m,) friction levels L and transition velocities v_tilde
+    branches : list of tuples over {0: linear, +1, -1}, tried in order
+
+    Returns
+    -------
+    d : (m,) friction input values
+    """
+    m = len(alpha)
+    if m == 1:  # closed form, the common case
+        L, v, a, b = level[0], vt[0], alpha[0], beta[0][0]
+        if L == 0.0:
+            return np.zeros(1)
+        den = v - L * b
+        if den > 0:
+            d = L * a / den
+            if abs(d) <= L:
+                return np.array([d])
+        for s in (1.0, -1.0):
+            if s * (a + b * s * L) >= v * (1 - _TOL):
+                return np.array([s * L])
+        return np.array([L * _sat(a / v)])
+    for br in branches:
+        d = np.zeros(m)
+        lin = [i for i in range(m) if br[i] == 0]
+        for i in range(m):
+            if br[i] != 0:
+                d[i] = br[i] * level[i]
+        if lin:
+            g = np.array([level[i] / vt[i] for i in lin])
+            M = np.eye(len(lin)) - g[:, None] * beta[np.ix_(lin, lin)]
+            rhs = g * (alpha[lin] + beta[np.ix_(lin, [i for i in range(m) if br[i] != 0])]
+                       @ d[[i for i in range(m) if br[i] != 0]])
+            try:
+                d[lin] = np.linalg.solve(M, rhs)
+            except np.linalg.LinAlgError:
+                continue
+        z = (alpha + beta @ d) / vt
+        ok = True
+        for i in range(m):
+            if level[i] == 0.0:
+                continue
+            if br[i] == 0 and abs(z[i]) > 1 + _TOL:
+                ok = False
+            elif br[i] == 1 and z[i] < 1 - _TOL:
+                ok = False
+            elif br[i] == -1 and z[i] > -1 + _TOL:
+                ok = False
+        if ok:
+            return d
+    return np.array([level[i] * _sat(alpha[i] / vt[i]) for i in range(m)])
+
+
+def simulate(model, trace_or_commands, Ts=None, start_velocity=None, params=None, externals=None):
+    """Free-run simulation of a model from commanded inputs alone.
+
+    Parameters
+    ----------
+    model : DriveModel or QuasiStaticModel
+    trace_or_commands : Trace, or dict ``{axis: commanded position array (mm)}``
+    Ts : float, optional
+        Sample time of the commands (taken from the trace otherwise); must equal ``model.Ts``.
+    start_velocity : dict axis -> mm/s, optional
+        Initial velocity v0 of each axis. Default: 0 (at rest) for command dicts; for a Trace,
+        the commanded velocity of its first two samples (a record that starts in motion).
+    params : dict, optional
+        Parameter overrides like the FMU's: ``<axis>_friction_on``, ``<axis>_friction_level``,
+        ``<axis>_v_tilde``.
+    externals : dict name -> array, optional
+        Values of ``external`` inputs (taken from the trace's channels otherwise).
+
+    Returns
+    -------
+    SimResult
+    """
+    cmds, exts, t, ts = _commands(model, trace_or_commands, Ts, externals)
+    if isinstance(model, QuasiStaticModel):
+        from .identify.quasi_static import predict_quasi_static
+        return predict_quasi_static(model, cmds, t)
+    if abs(ts - model.Ts) > 1e-6 * model.Ts:
+        raise InputError(f"commands are sampled at {ts:g} s but the model at {model.Ts:g} s; "
+                         f"resample the trace", column="Ts")
+    if start_velocity is None:
+        start_velocity = ({a: (c[1] - c[0]) / ts for a, c in cmds.items()}
+                          if isinstance(trace_or_commands, Trace) else {})
+    plan = _Plan(model, params)
+    return _run(plan, cmds, exts, t, start_velocity)
+
+
+def _commands(model, src, Ts, externals):
+    axes = model.axes
+    if isinstance(src, Trace):
+        cmds = {a: np.asarray(src.cmd(a), float) for a in axes}
+        t, ts = src.t, src.Ts
+        exts = {}
+        if isinstance(model, DriveModel):
+            for p in model.inputs:
+                if p.kind == "external":
+                    if externals and p.name in externals:
+                        exts[p.name] = np.asarray(externals[p.name], float)
+                    else:
+                        exts[p.name] = np.asarray(src.extra(p.params.get("channel", p.name)), float)
+        return cmds, exts, t, ts
+    if Ts is None:
+        raise InputError("Ts is needed when commands are given as arrays", column="Ts")
+    missing = [a for a in axes if a not in src]
+    if missing:
+        raise InputError(f"no command for axes {missing}", column="commands")
+    cmds = {a: np.asarray(src[a], float) for a in axes}
+    n = len(next(iter(cmds.values())))
+    for a, c in cmds.items():
+        if c.shape != (n,) or not np.isfinite(c).all():
+            raise InputError(f"command of axis '{a}' must be {n} finite numbers", column=a)
+    exts = {k: np.asarray(v, float) for k, v in (externals or {}).items()}
+    if isinstance(model, DriveModel):
+        for p in model.inputs:
+            if p.kind == "external" and p.name not in exts:
+                raise InputError("external input not given", column=p.name)
+    return cmds, exts, np.arange(n) * Ts, Ts
+
+
+def _run(plan, cmds, exts, t, v0):
+    m = plan.m
+    A, B, C, D, G1, Ts = m.A, m.B, m.C, m.D, plan.G1, m.Ts
+    N, nu, ny = len(t), B.shape[1], C.shape[0]
+    ins = m.inputs
+    uref = np.zeros(nu)
+    for a, i in plan.cmd.items():
+        uref[i] = cmds[a][0]
+    yoff = G1 @ uref
+    v0 = {a: float(v0.get(a, 0.0)) for a in plan.axes}
+
+    # --- initial state: steady ramp (see module docstring)
+    u0 = np.zeros(nu)
+    du = np.zeros(nu)
+    for a, i in plan.cmd.items():
+        du[i] = v0[a] * Ts
+    for j, i in enumerate(plan.fric):
+        u0[i] = plan.level[j] * _sat(v0[ins[i].axis] / plan.vt[j])
+    for i in plan.ext:
+        u0[i] = exts[ins[i].name][0]
+    for i in plan.feat:
+        a = ins[i].axis
+        u0[i] = feature_value(ins[i].params, v0[a], cmds[a][0], cmds[a][0])
+    xi = plan.S @ u0 - plan.S2 @ du
+    y0 = C @ xi + D @ u0 + yoff
+    x_prev = {a: y0[plan.pos[a]] - v0[a] * Ts for a in plan.axes}
+    v_prev = dict(v0)
+
+    Y = np.empty((N, ny))
+    U = np.empty((N, nu))
+    V = {a: np.empty(N) for a in plan.axes}
+    nf = len(plan.fric)
+    beta = np.zeros((nf, nf))
+    for j, (o, diff) in enumerate(plan.vsrc):
+        for jj, i in enumerate(plan.fric):
+            beta[j, jj] = D[o, i] / Ts if diff else D[o, i]
+    u = np.zeros(nu)
+    for k in range(N):
+        for a, i in plan.cmd.items():
+            u[i] = cmds[a][k] - uref[i]
+        for i in plan.ext:
+            u[i] = exts[ins[i].name][k]
+        for i in plan.feat:
+            a = ins[i].axis
+            u[i] = feature_value(ins[i].params, v_prev[a], cmds[a][k], x_prev[a])
+        for i in plan.fric:
+            u[i] = 0.0
+        y = C @ xi + D @ u + yoff
+        if nf:
+            alpha = np.empty(nf)
+            for j, (o, diff) in enumerate(plan.vsrc):
+                alpha[j] = (y[o] - x_prev[ins[plan.fric[j]].axis]) / Ts if diff else y[o]
+            d = solve_friction(alpha, beta, plan.level, plan.vt, plan.branches)
+            for j, i in enumerate(plan.fric):
+                u[i] = d[j]
+            y = y + D[:, plan.fric] @ d
+        for a in plan.axes:
+            v_prev[a] = y[plan.vel[a]] if plan.vel[a] is not None else (y[plan.pos[a]] - x_prev[a]) / Ts
+            x_prev[a] = y[plan.pos[a]]
+            V[a][k] = v_prev[a]
+        Y[k] = y
+        U[k] = u
+        xi = A @ xi + B @ u
+    return SimResult(t=np.asarray(t), y=Y, u=U, axes=_axis_view(plan, Y, cmds, V),
+                     output_names=[p.name for p in m.outputs])
+
+
+def _axis_view(plan, Y, cmds, V):
+    out = {}
+    for a in plan.axes:
+        x = Y[:, plan.pos[a]]
+        e = Y[:, plan.err[a]] if plan.err[a] is not None else cmds[a] - x
+        d = {"position": x, "error": e, "velocity": V[a]}
+        if plan.tool[a] is not None:
+            d["tool_position"] = Y[:, plan.tool[a]]
+        out[a] = d
+    return out
