@@ -1,0 +1,1 @@
+"""Virtual feed drive (placeholder, filled below)."""
