@@ -74,10 +74,24 @@ def filtered_derivatives(x, Ts, cutoff_hz, order=2, n=3):
     return out
 
 
-def measured_velocity(x, Ts, ma_order=5):
-    """Velocity from an encoder position: central difference, then a centred moving average
-    (thesis section 4.3: zero phase shift, quantisation noise suppressed)."""
-    return moving_average(np.gradient(np.asarray(x, dtype=float), Ts), ma_order)
+def measured_velocity(x, Ts, ma_order=5, method="central"):
+    """Velocity from an encoder position, then a centred moving average of ``ma_order`` samples.
+
+    ``method="central"``: central difference (thesis section 4.3: zero phase shift, quantisation
+    noise suppressed by the average). ``method="backward"``: (x[k] - x[k-1]) / Ts, the definition
+    the simulator uses for the model's own velocity (first sample repeats the second).
+    """
+    x = np.asarray(x, dtype=float)
+    if method == "central":
+        v = np.gradient(x, Ts)
+    elif method == "backward":
+        v = np.empty_like(x)
+        v[1:] = np.diff(x) / Ts
+        v[0] = v[1] if x.size > 1 else 0.0
+    else:
+        raise InputError(f"velocity method must be 'central' or 'backward', got {method!r}",
+                         column="velocity")
+    return moving_average(v, ma_order)
 
 
 def sat_friction(v, v_tilde):

@@ -206,7 +206,7 @@ def simulate(model, trace_or_commands, Ts=None, start_velocity=None, params=None
     if isinstance(model, QuasiStaticModel):
         from .identify.quasi_static import predict_quasi_static
         return predict_quasi_static(model, cmds, t)
-    if abs(ts - model.Ts) > 1e-6 * model.Ts:
+    if abs(ts - model.Ts) > 1e-3 * model.Ts:
         raise InputError(f"commands are sampled at {ts:g} s but the model at {model.Ts:g} s; "
                          f"resample the trace", column="Ts")
     if start_velocity is None:

@@ -1,0 +1,250 @@
+"""Least-squares projection for a candidate pole set (thesis Eqn 4.16, 5.8-5.17).
+
+Given the poles (and v_tilde), :class:`LSProblem` builds the regressors of every input
+(``regressors.py``), scales them by their infinity norm (Eqn 5.8-5.9), solves one LS problem per
+output for its numerator terms (Eqn 5.10) with the terms known to be zero left out, applies the
+d.c.-gain constraints as fixed terms moved to the output side (Eqn 5.13-5.17), unscales the
+numerators (Eqn 5.12) and returns the objective: the RMS of the output prediction errors with
+each output scaled by its infinity norm (W_z), as in section 5.2.3.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import linalg
+
+from ..errors import InputError
+from ..signals import measured_velocity
+from . import regressors as rg
+from .structure import OUTPUT_SOURCES, Structure
+
+
+@dataclass
+class Segment:
+    """Prepared data of one data range: fixed inputs, measured velocities, outputs."""
+
+    W: np.ndarray          # (m, N) inputs; friction/feature rows filled per candidate
+    wref: np.ndarray       # (m,) offsets removed from command inputs
+    dw: np.ndarray         # (m,) ramp increment at the start
+    vel: dict              # axis -> measured velocity (mm/s), drives friction
+    pos: dict              # axis -> measured position (mm), drives position features
+    Z: np.ndarray          # (p, N) measured outputs
+
+
+@dataclass
+class Fit:
+    """Result of the LS projection for one pole set."""
+
+    J: float                    # objective (scaled RMS), penalised if a sign constraint fails
+    a: np.ndarray               # monic A(s)
+    b: dict                     # (output name, input name) -> numerator (n+1,) as FITTED
+    rms: np.ndarray             # per-output RMS prediction error (unscaled units)
+    feasible: bool
+    v_tilde: dict               # axis -> v_tilde used
+
+
+class LSProblem:
+    """The data of an identification, ready for fast repeated LS projections.
+
+    Parameters
+    ----------
+    traces : list[Trace]  data ranges (same Ts)
+    structure : Structure
+    """
+
+    def __init__(self, traces, structure: Structure):
+        structure.check()
+        self.s = structure
+        self.traces = traces
+        self.Ts = traces[0].Ts
+        for tr in traces:
+            if abs(tr.Ts - self.Ts) > 1e-6 * self.Ts:
+                raise InputError(f"data ranges have different sample times ({self.Ts} s, {tr.Ts} s)",
+                                 source=tr.source, column="time")
+        self.n = structure.order
+        self.m = len(structure.inputs)
+        self.p = len(structure.outputs)
+        self.segments = [self._segment(tr) for tr in traces]
+        self.N = sum(sg.Z.shape[1] for sg in self.segments)
+        need = 20 * (self.n + 1) * self.m
+        if self.N < need:
+            raise InputError(f"{self.N} samples are too few for an order-{self.n} model with {self.m} "
+                             f"inputs (need at least {need})", source=traces[0].source, column="samples")
+        Zall = np.concatenate([sg.Z for sg in self.segments], axis=1)
+        self.Wz = np.max(np.abs(Zall - Zall.mean(axis=1, keepdims=True)), axis=1)
+        for o, w in zip(structure.outputs, self.Wz):
+            if not w > 0:
+                raise InputError(f"output '{o.name}' is constant over the data range: nothing to fit",
+                                 source=traces[0].source, column=o.name)
+        self.zz = np.sum(Zall ** 2, axis=1)
+        self.Z = Zall
+        # per output: which (input, l) columns are estimated / fixed
+        self.cols, self.fixed = [], []
+        self.allow = {}
+        for o in structure.outputs:
+            est, fix = [], []
+            for i, ins in enumerate(structure.inputs):
+                allow = structure.allowed(o.name, ins.name)
+                if o.integrators:
+                    allow[self.n - o.integrators + 1:] = False   # terms that integrate away (5.28)
+                key = (o.name, ins.name)
+                if key in structure.dc_gain:
+                    q, _ = structure.dc_gain[key]
+                    if not 0 <= q <= self.n:
+                        raise InputError(f"d.c.-gain order {q} outside 0..{self.n}", column=str(key))
+                    allow[self.n - q + 1:] = False
+                    allow[self.n - q] = False
+                    fix.append((i, self.n - q, key))
+                self.allow[key] = allow.copy()
+                est.extend((i, l) for l in np.flatnonzero(allow))
+            self.cols.append(est)
+            self.fixed.append(fix)
+        used = sorted({c for cs in self.cols for c in cs} | {(i, l) for fx in self.fixed for i, l, _ in fx})
+        self.used = used
+        self.col_index = {c: k for k, c in enumerate(used)}
+        self.used_l = sorted({l for _, l in used})
+
+    # ------------------------------------------------------------ data
+    def _segment(self, tr):
+        s = self.s
+        N = tr.n
+        W = np.zeros((self.m, N))
+        wref = np.zeros(self.m)
+        dw = np.zeros(self.m)
+        vel, pos = {}, {}
+        for ax in s.axes:
+            x = np.asarray(tr.act(ax), float) if tr.has(ax, "act") else np.asarray(tr.cmd(ax), float)
+            pos[ax] = x
+            vel[ax] = (np.asarray(tr.get(ax, "vel"), float) if tr.has(ax, "vel")
+                       else measured_velocity(x, tr.Ts, s.ma_order, s.velocity))
+        for i, ins in enumerate(s.inputs):
+            if ins.kind == "command":
+                c = np.asarray(tr.cmd(ins.axis), float)
+                if np.ptp(c) <= 0:
+                    raise InputError(f"the commanded position of axis '{ins.axis}' does not move in this "
+                                     f"range: nothing to identify", source=tr.source, column=ins.name)
+                wref[i] = c[0]
+                W[i] = c - c[0]
+                dw[i] = W[i, 1] - W[i, 0]
+            elif ins.kind == "external":
+                W[i] = np.asarray(tr.extra(ins.channel), float)
+        Z = np.zeros((self.p, N))
+        for j, o in enumerate(s.outputs):
+            Z[j] = _measured_output(tr, o)
+        return Segment(W=W, wref=wref, dw=dw, vel=vel, pos=pos, Z=Z)
+
+    def fill_nonlinear_inputs(self, sg, v_tilde):
+        """Friction and feature rows of the inputs for the given v_tilde (per axis)."""
+        from ..simulate import feature_value  # noqa: F401  (same definitions as the simulator)
+        W = sg.W.copy()
+        for i, ins in enumerate(self.s.inputs):
+            if ins.kind == "friction":
+                W[i] = np.clip(sg.vel[ins.axis] / v_tilde[ins.axis], -1.0, 1.0)
+            elif ins.kind == "feature":
+                W[i] = feature_signal(ins.params, sg.vel[ins.axis], sg.pos[ins.axis])
+        return W
+
+    # ------------------------------------------------------------ projection
+    def design(self, a, v_tilde):
+        """Regressors of the used columns, stacked over segments: (columns, samples)."""
+        den, F = rg.tustin_basis(a, self.Ts)
+        Fu = F[self.used_l]
+        lpos = {l: k for k, l in enumerate(self.used_l)}
+        blocks = []
+        for sg in self.segments:
+            W = self.fill_nonlinear_inputs(sg, v_tilde)
+            R = rg.allpole_filter(den, W, W[:, 0], sg.dw)
+            Phi = rg.regressors(R, Fu, self.n)               # (m, N, len(used_l))
+            Mt = np.empty((len(self.used), W.shape[1]))
+            for k, (i, l) in enumerate(self.used):
+                Mt[k] = Phi[i, :, lpos[l]]
+                if l == self.n and sg.wref[i] != 0.0:
+                    Mt[k] += sg.wref[i] / a[-1]              # d.c. response of the removed offset
+            blocks.append(Mt)
+        return blocks[0] if len(blocks) == 1 else np.concatenate(blocks, axis=1)
+
+    def project(self, a, v_tilde, want_residuals=False):
+        """LS projection for one pole set; returns a :class:`Fit` (and residuals if asked)."""
+        Mt = self.design(a, v_tilde)
+        Z = self.Z
+        r = np.abs(Mt).max(axis=1)
+        r[r == 0] = 1.0
+        Ms = Mt / r[:, None]                                  # Eqn 5.9
+        G = Ms @ Ms.T
+        MZ = Ms @ Z.T                                         # (k, p)
+        b, rms, feasible, res_all = {}, np.zeros(self.p), True, []
+        total = 0.0
+        for j, o in enumerate(self.s.outputs):
+            z_off = np.zeros(len(self.used))
+            for i, l, key in self.fixed[j]:
+                q, value = self.s.dc_gain[key]
+                z_off[self.col_index[(i, l)]] = value * a[-1] * r[self.col_index[(i, l)]]  # Eqn 5.16
+            idx = [self.col_index[c] for c in self.cols[j]]
+            rhs = MZ[:, j] - G @ z_off
+            theta = np.zeros(len(self.used))
+            if idx:
+                Gs = G[np.ix_(idx, idx)]
+                try:
+                    theta[idx] = linalg.solve(Gs, rhs[idx], assume_a="pos", check_finite=False)
+                except (linalg.LinAlgError, ValueError):
+                    theta[idx] = linalg.lstsq(Gs, rhs[idx], check_finite=False)[0]
+            full = theta + z_off
+            if want_residuals:
+                res = Z[j] - full @ Ms
+                sse = float(res @ res)
+                res_all.append(res)
+            else:
+                sse = max(float(self.zz[j] - 2 * full @ MZ[:, j] + full @ G @ full), 0.0)
+            rms[j] = np.sqrt(sse / self.N)
+            total += sse / self.Wz[j] ** 2
+            coef = full / r                                   # Eqn 5.12
+            for i, ins in enumerate(self.s.inputs):
+                bb = np.zeros(self.n + 1)
+                for l in range(self.n + 1):
+                    k = self.col_index.get((i, l))
+                    if k is not None and (self.allow[(o.name, ins.name)][l] or
+                                          any(fi == i and fl == l for fi, fl, _ in self.fixed[j])):
+                        bb[l] = coef[k]
+                b[(o.name, ins.name)] = bb
+        for (oname, iname), sign in self.s.friction_sign.items():
+            allow = self.allow[(oname, iname)]
+            if allow.any():
+                lowest = np.flatnonzero(allow)[-1]
+                if sign * b[(oname, iname)][lowest] < 0:
+                    feasible = False
+        J = float(np.sqrt(total / (self.N * self.p)))
+        fit = Fit(J=J if feasible else 10.0 + J, a=np.asarray(a), b=b, rms=rms, feasible=feasible,
+                  v_tilde=dict(v_tilde))
+        if want_residuals:
+            return fit, np.array(res_all)
+        return fit
+
+
+def feature_signal(params, vel, pos):
+    """Feature input over a record from measured velocity / position (same functions as the
+    simulator's ``feature_value``, applied to measured signals)."""
+    f = params["function"]
+    if f in ("sin_position", "cos_position"):
+        arg = 2 * np.pi * pos / params["period_mm"]
+        return np.sin(arg) if f == "sin_position" else np.cos(arg)
+    s = np.clip(vel / params["v_tilde"], -1.0, 1.0)
+    if f == "sat":
+        return s
+    if f == "abs_sat":
+        return np.abs(s)
+    if f == "stribeck":
+        return s * np.exp(-(vel / params["v_s"]) ** 2)
+    raise InputError(f"unknown feature function '{f}'", column="feature")
+
+
+def _measured_output(tr, o):
+    src = OUTPUT_SOURCES[o.kind]
+    ax = o.axis
+    if src == "cmd-act":
+        return np.asarray(tr.cmd(ax), float) - np.asarray(tr.act(ax), float)
+    if src == "cmd-tool":
+        return np.asarray(tr.cmd(ax), float) - np.asarray(tr.get(ax, "tool"), float)
+    if src == "vel" and not tr.has(ax, "vel"):
+        return measured_velocity(np.asarray(tr.act(ax), float), tr.Ts)
+    return np.asarray(tr.get(ax, src), float)

@@ -1,0 +1,325 @@
+"""Pole search with LS projection: SISO (thesis ch. 4.3) and scaled MIMO LTI (ch. 5).
+
+One engine: :func:`identify_mimo` searches the shared poles (and the friction transition
+velocity v_tilde) of a :class:`~fdid_fmi.identify.structure.Structure`, projects every candidate
+onto the numerators by LS (``lsfit.py``) and assembles the winner as an UNSCALED discrete state
+space (Eqn 5.18-5.25) with its friction nonlinearity: a :class:`~fdid_fmi.model.DriveModel`.
+:func:`identify_siso` is the rigid-body special case (Eqn 4.10-4.17).
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from scipy.linalg import block_diag
+
+from .. import __version__
+from ..errors import InputError
+from ..model import DriveModel, Port
+from . import regressors as rg
+from .lsfit import LSProblem
+from .search import run_search
+from .structure import Bounds, Structure, default_bounds, siso_structure
+
+
+# ------------------------------------------------------------------ parameters
+class _Params:
+    """Maps the search vector to poles and v_tilde (see search.py for the layout)."""
+
+    def __init__(self, structure: Structure, bounds: Bounds, fric_axes, v_tilde_fixed):
+        self.s, self.b = structure, bounds
+        self.fric_axes = fric_axes
+        self.v_fixed = v_tilde_fixed
+        nr, nc = structure.n_real, structure.n_complex
+        lo = [np.log10(l) for l, _ in bounds.real_hz] + [np.log10(l) for l, _ in bounds.omega_hz] + \
+             [l for l, _ in bounds.zeta]
+        hi = [np.log10(h) for _, h in bounds.real_hz] + [np.log10(h) for _, h in bounds.omega_hz] + \
+             [h for _, h in bounds.zeta]
+        self.v_search = [a for a in fric_axes if a not in v_tilde_fixed]
+        for _ in self.v_search:
+            lo.append(np.log10(bounds.v_tilde[0]))
+            hi.append(np.log10(bounds.v_tilde[1]))
+        self.lo, self.hi = np.array(lo), np.array(hi)
+        self.nr, self.nc = nr, nc
+
+    def decode(self, x):
+        nr, nc = self.nr, self.nc
+        real = list(10 ** x[:nr])
+        cplx = list(zip(10 ** x[nr:nr + nc], x[nr + nc:nr + 2 * nc]))
+        vt = dict(self.v_fixed)
+        for k, ax in enumerate(self.v_search):
+            vt[ax] = float(10 ** x[nr + 2 * nc + k])
+        return real, cplx, vt
+
+    def encode(self, real, cplx, vt):
+        x = list(np.log10(real)) + [np.log10(w) for w, _ in cplx] + [z for _, z in cplx]
+        x += [np.log10(vt[a]) for a in self.v_search]
+        return np.array(x)
+
+    def canonical(self, x):
+        """Canonical order of a pole set (same objective value)."""
+        real, cplx, vt = self.decode(x)
+        real = sorted(real)
+        cplx = sorted(cplx)
+        # the (p, omega, zeta > 1) mirror: the free real pole is the fastest of the three
+        if self.nr >= 1 and self.nc >= 1:
+            w, z = cplx[0]
+            if z > 1:
+                r1, r2 = w * (z - np.sqrt(z * z - 1)), w * (z + np.sqrt(z * z - 1))
+                trio = sorted([real[-1], r1, r2])
+                if trio[2] != real[-1]:
+                    nw = np.sqrt(trio[0] * trio[1])
+                    cand_real = real[:-1] + [trio[2]]
+                    cand_cplx = [(nw, (trio[0] + trio[1]) / (2 * nw))] + cplx[1:]
+                    xc = self.encode(sorted(cand_real), cand_cplx, vt)
+                    if np.all(xc >= self.lo - 1e-12) and np.all(xc <= self.hi + 1e-12):
+                        return xc
+        return self.encode(real, cplx, vt)
+
+    def polynomial(self, real, cplx):
+        return rg.characteristic_polynomial(list(real) + list(self.s.locked_real_hz),
+                                            list(cplx) + list(self.s.locked_complex))
+
+
+# ------------------------------------------------------------------ API
+def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_tilde=None,
+                  method="de", seed=0, maxiter=None, popsize=None, progress=False):
+    """Scaled MIMO LTI pole search (thesis ch. 5) -> unscaled DriveModel.
+
+    Parameters
+    ----------
+    traces : Trace or list[Trace]
+        Training data ranges (each filtered from its own consistent initial state).
+    structure : Structure
+    bounds : Bounds, optional
+        Default: :func:`default_bounds` from Ts, and v_tilde in [1e-4, 0.3] x max |v|.
+    v_tilde : float or dict axis -> float, optional
+        Fix the friction transition velocity (mm/s) instead of searching it.
+    method, seed, maxiter, popsize : search settings (see ``search.run_search``)
+    progress : bool, show a progress bar
+
+    Returns
+    -------
+    DriveModel, with ``identification["minima"]`` the ranked local minima found.
+    """
+    t_start = time.perf_counter()
+    traces = [traces] if not isinstance(traces, (list, tuple)) else list(traces)
+    prob = LSProblem(traces, structure)
+    Ts = prob.Ts
+    fric_axes = [s.axis for s in structure.inputs if s.kind == "friction"]
+    if bounds is None:
+        bounds = default_bounds(Ts, structure.n_real, structure.n_complex)
+    if len(bounds.real_hz) != structure.n_real or len(bounds.omega_hz) != structure.n_complex \
+            or len(bounds.zeta) != structure.n_complex:
+        raise InputError(f"bounds give {len(bounds.real_hz)} real and {len(bounds.omega_hz)} complex "
+                         f"ranges, the structure has {structure.n_real} and {structure.n_complex}",
+                         column="bounds")
+    vfix = {}
+    if v_tilde is not None:
+        vfix = dict(v_tilde) if isinstance(v_tilde, dict) else {a: float(v_tilde) for a in fric_axes}
+        for a, v in vfix.items():
+            if not (np.isfinite(v) and v > 0):
+                raise InputError(f"v_tilde must be > 0 mm/s, got {v!r}", column=f"{a}.v_tilde")
+    if bounds.v_tilde is None and any(a not in vfix for a in fric_axes):
+        vmax = max(np.max(np.abs(sg.vel[a])) for sg in prob.segments for a in fric_axes)
+        bounds = Bounds(bounds.real_hz, bounds.omega_hz, bounds.zeta, (1e-4 * vmax, 0.3 * vmax))
+    bounds.check(Ts)
+    par = _Params(structure, bounds, fric_axes, vfix)
+
+    def objective(x):
+        real, cplx, vt = par.decode(x)
+        return prob.project(par.polynomial(real, cplx), vt).J
+
+    if par.lo.size == 0:  # everything locked: a single LS projection
+        xbest, minima, nfev, fun = np.array([]), [], 1, objective(np.array([]))
+    else:
+        res = run_search(objective, par.lo, par.hi, method=method, seed=seed, maxiter=maxiter,
+                         popsize=popsize, progress=progress)
+        xbest, nfev, fun = par.canonical(res.x), res.nfev, res.fun
+        minima = [(f, par.canonical(x)) for f, x in res.minima]
+    real, cplx, vt = par.decode(xbest)
+    fit, residuals = prob.project(par.polynomial(real, cplx), vt, want_residuals=True)
+    if not fit.feasible:
+        raise InputError("no feasible model in the search space (every candidate had a friction gain "
+                         "of the wrong sign); widen the bounds or check the friction structure",
+                         source=traces[0].source, column="bounds")
+    model = assemble(structure, fit, Ts)
+    model.poles = rg.poles_from_parameters(list(real) + list(structure.locked_real_hz),
+                                           list(cplx) + list(structure.locked_complex))
+    model.method = "mimo"
+    model.identification = {
+        "structure": _structure_dict(structure),
+        "real_hz": real, "complex_hz_zeta": [list(c) for c in cplx],
+        "locked_real_hz": list(structure.locked_real_hz),
+        "locked_complex": [list(c) for c in structure.locked_complex],
+        "v_tilde_mm_s": vt,
+        "denominator": fit.a.tolist(),
+        "numerators": {f"{o}|{i}": b.tolist() for (o, i), b in fit.b.items()},
+        "tracking_zeros_hz_zeta": tracking_zeros(structure, fit),
+        "search": {"method": method, "seed": seed, "nfev": nfev, "objective": fun,
+                   "bounds": {"real_hz": bounds.real_hz, "omega_hz": bounds.omega_hz,
+                              "zeta": bounds.zeta, "v_tilde": bounds.v_tilde}},
+        "minima": [{"objective": f, **_describe(par, x)} for f, x in minima],
+    }
+    model.metrics = {
+        "objective_scaled_rms": fit.J,
+        "fit_rms": {o.name: float(r) for o, r in zip(structure.outputs, fit.rms)},
+        "samples": prob.N, "wall_time_s": time.perf_counter() - t_start,
+    }
+    model.provenance = {
+        "software": f"fdid-fmi {__version__}",
+        "data": [{"source": tr.source, "sha256": tr.meta.get("sha256") or tr.fingerprint(),
+                  "t_start_s": float(tr.t[0]), "t_stop_s": float(tr.t[-1]), "samples": tr.n}
+                 for tr in traces],
+    }
+    model._residuals = residuals  # training LS residuals (not saved)
+    return model
+
+
+def identify_siso(traces, axis="x", integral_action=True, v_tilde=None, bounds=None, method="de",
+                  seed=0, ma_order=1, velocity="backward", maxiter=None, popsize=None, progress=False,
+                  friction=True):
+    """SISO rigid-body pole search with LS projection (thesis Eqn 4.10-4.17).
+
+    Inputs x_r and d_nf = sat(v/v_tilde) (v: moving-average-filtered encoder derivative), output
+    e = x_r - x; P(s) = (s + p)(s^2 + 2 zeta omega s + omega^2); candidates with d0 < 0 rejected.
+    ``integral_action=False`` adds the 1/P(s) friction term for P/PD position loops (EMPS).
+    v_tilde (mm/s) is searched with the poles unless given.
+    """
+    st = siso_structure(axis, integral_action=integral_action, ma_order=ma_order, friction=friction,
+                        velocity=velocity)
+    model = identify_mimo(traces, st, bounds=bounds, v_tilde=v_tilde, method=method, seed=seed,
+                          maxiter=maxiter, popsize=popsize, progress=progress)
+    model.method = "pole-search"
+    return model
+
+
+# ------------------------------------------------------------------ assembly
+def assemble(structure: Structure, fit, Ts):
+    """Unscaled discrete state space of a fit (Eqn 5.18-5.25) as a DriveModel.
+
+    One SIMO block (A0, B0, C0, D0) per input (Eqn 5.22); each output row is the numerator-weighted
+    sum of the blocks' regressor outputs (Eqn 5.23). Integrators are appended by shifting the
+    numerators (Eqn 5.26-5.29). Derived outputs complete each axis: position = x_r - error (or
+    the reverse), so every axis has a position, an error and (through the simulator) a velocity.
+    """
+    n = len(fit.a) - 1
+    den, F = rg.tustin_basis(fit.a, Ts)
+    A0, B0, C0, D0 = rg.simo_realisation(den, F)
+    ins = structure.inputs
+    m = len(ins)
+    A = block_diag(*([A0] * m))
+    B = block_diag(*([B0] * m))
+    rows_C, rows_D, outs = [], [], []
+    cmd_col = {s.axis: i for i, s in enumerate(ins) if s.kind == "command"}
+    for o in structure.outputs:
+        c = np.zeros(n * m)
+        d = np.zeros(m)
+        for i, s in enumerate(ins):
+            b = fit.b[(o.name, s.name)]
+            if o.integrators:
+                b = np.concatenate([np.zeros(o.integrators), b[: n + 1 - o.integrators]])   # Eqn 5.29
+            c[i * n:(i + 1) * n] = b @ C0
+            d[i] = (b @ D0)[0]
+        rows_C.append(c)
+        rows_D.append(d)
+        kind = {"tool_error": "other"}.get(o.predicts, o.predicts)
+        unit = {"velocity": "mm_s", "acceleration": "mm_s2"}.get(kind, "mm")
+        outs.append(Port(name=o.name if not o.integrators else f"{o.axis}_{o.predicts}", unit=unit,
+                         kind=kind, axis=o.axis, description=_out_description(o)))
+    # derived outputs: x = x_r - e, e = x_r - x, tool position from tool error
+    for ax in structure.axes:
+        kinds = {p.kind for p in outs if p.axis == ax}
+        names = {p.kind: k for k, p in enumerate(outs) if p.axis == ax}
+        ic = cmd_col[ax]
+
+        def derived(src, kind, name, desc):
+            c = -rows_C[src]
+            d = -rows_D[src].copy()
+            d[ic] += 1.0
+            rows_C.append(c)
+            rows_D.append(d)
+            outs.append(Port(name=name, unit="mm", kind=kind, axis=ax, description=desc))
+
+        if "error" in kinds and "position" not in kinds:
+            derived(names["error"], "position", f"{ax}_pos", "predicted position x = x_r - e")
+        elif "position" in kinds and "error" not in kinds:
+            derived(names["position"], "error", f"{ax}_err", "predicted tracking error e = x_r - x")
+        if "other" in kinds and "tool_position" not in kinds:
+            k = next(k for k, p in enumerate(outs) if p.axis == ax and p.name.endswith("tool_error"))
+            derived(k, "tool_position", f"{ax}_tool", "predicted tool-side position")
+        kinds = {p.kind for p in outs if p.axis == ax}
+        if "position" not in kinds and "tool_position" in kinds:
+            # the tool-side position is the axis position of this model
+            k = next(k for k, p in enumerate(outs) if p.axis == ax and p.kind == "tool_position")
+            rows_C.append(rows_C[k].copy())
+            rows_D.append(rows_D[k].copy())
+            outs.append(Port(name=f"{ax}_pos", unit="mm", kind="position", axis=ax,
+                             description="predicted position (tool side: no motor-side output)"))
+        if "error" not in {p.kind for p in outs if p.axis == ax}:
+            derived(next(k for k, p in enumerate(outs) if p.axis == ax and p.kind == "position"),
+                    "error", f"{ax}_err", "predicted tracking error e = x_r - x")
+    in_ports = []
+    for s in ins:
+        if s.kind == "command":
+            in_ports.append(Port(s.name, "mm", "command", s.axis, {}, "commanded position x_r"))
+        elif s.kind == "friction":
+            in_ports.append(Port(s.name, "1", "friction", s.axis,
+                                 {"v_tilde": float(fit.v_tilde[s.axis]), "level": 1.0},
+                                 "normalised Coulomb friction sat(v / v_tilde)"))
+        elif s.kind == "external":
+            in_ports.append(Port(s.name, "1", "external", s.axis, {"channel": s.channel},
+                                 f"measured input '{s.channel}'"))
+        else:
+            in_ports.append(Port(s.name, "1", "feature", s.axis, dict(s.params), "nonlinear feature"))
+    return DriveModel(Ts=Ts, A=A, B=B, C=np.array(rows_C), D=np.array(rows_D), inputs=in_ports,
+                      outputs=outs)
+
+
+def tracking_zeros(structure, fit):
+    """Zeros (Hz, damping) of each tracking transfer function x/x_r = 1 - e/x_r (Table 4-2)."""
+    out = {}
+    a = fit.a
+    for o in structure.outputs:
+        for s in structure.inputs:
+            if s.kind != "command" or s.axis != o.axis:
+                continue
+            b = fit.b[(o.name, s.name)]
+            if o.kind == "error":
+                num = a - b
+            elif o.kind in ("position", "tool_position") and not o.integrators:
+                num = b
+            else:
+                continue
+            num = np.trim_zeros(num, "f")
+            if num.size < 2:
+                continue
+            zs = np.roots(num)
+            out[o.name] = [[float(abs(z) / (2 * np.pi)), float(-z.real / abs(z)) if abs(z) > 0 else -1.0]
+                           for z in zs]
+    return out
+
+
+def _describe(par, x):
+    real, cplx, vt = par.decode(x)
+    return {"real_hz": [float(r) for r in real], "complex_hz_zeta": [[float(w), float(z)] for w, z in cplx],
+            "v_tilde_mm_s": vt}
+
+
+def _out_description(o):
+    text = {"error": "predicted tracking error e = x_r - x", "position": "predicted position",
+            "velocity": "predicted velocity", "tool_position": "predicted tool-side position",
+            "tool_error": "predicted tool-side tracking error", "acceleration": "predicted acceleration"}
+    d = text.get(o.predicts, o.predicts)
+    if o.integrators:
+        d += f" (fitted on {o.kind}, {o.integrators} integrator(s) appended)"
+    return d
+
+
+def _structure_dict(s):
+    return {"inputs": [vars(i) for i in s.inputs], "outputs": [vars(o) for o in s.outputs],
+            "n_real": s.n_real, "n_complex": s.n_complex,
+            "mask": {f"{k[0]}|{k[1]}": list(v) for k, v in s.mask.items()},
+            "dc_gain": {f"{k[0]}|{k[1]}": list(v) for k, v in s.dc_gain.items()},
+            "friction_sign": {f"{k[0]}|{k[1]}": v for k, v in s.friction_sign.items()},
+            "velocity": s.velocity, "ma_order": s.ma_order}

@@ -1,0 +1,144 @@
+"""Global search over the poles (and v_tilde) with scipy optimisers (thesis Figure 4-3 / 5-6).
+
+The thesis used MATLAB GlobalSearch / MultiStart / pattern search; here the user picks one of
+
+``de``          scipy.optimize.differential_evolution (default; Sobol initialisation, polished)
+``multistart``  Sobol starting points, each refined by a bounded local search (L-BFGS-B)
+``direct``      scipy.optimize.direct (deterministic DIRECT pattern search), then polished
+
+Every method is deterministic for a given seed and keeps the distinct local minima it found,
+ranked by objective (thesis section 7.2.2: all local minima were kept and tested).
+
+Search vector: [log10 p_k (Hz), log10 omega_k (Hz), zeta_k, log10 v_tilde (mm/s) per axis].
+Pole sets are put in canonical order (real poles ascending, complex pairs by omega; a pair with
+zeta > 1 whose real roots bracket a free real pole trades places with it), which removes the
+mirror minimum of the (p, omega, zeta) form.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import optimize
+from scipy.stats import qmc
+
+METHODS = ("de", "multistart", "direct")
+
+
+@dataclass
+class SearchResult:
+    x: np.ndarray
+    fun: float
+    minima: list = field(default_factory=list)    # [(fun, x)] distinct, best first
+    nfev: int = 0
+    method: str = "de"
+
+
+class _Counter:
+    """Wraps the objective: counts calls, keeps the best points seen, drives a progress bar."""
+
+    def __init__(self, fun, progress, total, desc):
+        self.fun, self.nfev = fun, 0
+        self.bar = None
+        if progress:
+            from tqdm.auto import tqdm
+            self.bar = tqdm(total=total, desc=desc, unit="eval", leave=False)
+
+    def __call__(self, x):
+        self.nfev += 1
+        if self.bar is not None:
+            self.bar.update(1)
+            if self.nfev > self.bar.total:
+                self.bar.total = self.nfev
+        return self.fun(x)
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+
+
+def distinct_minima(points, scale, rtol=0.02, keep=10):
+    """Distinct (fun, x) pairs, best first: drop points within ``rtol`` (relative to the
+    search box ``scale``) of a better one."""
+    out = []
+    for f, x in sorted(points, key=lambda p: p[0]):
+        if all(np.max(np.abs((x - y) / scale)) > rtol for _, y in out):
+            out.append((float(f), np.array(x)))
+        if len(out) >= keep:
+            break
+    return out
+
+
+def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, progress=False,
+               starts=None, local_polish=True):
+    """Minimise ``fun`` over the box [lo, hi].
+
+    Parameters
+    ----------
+    fun : callable(x) -> float
+    lo, hi : arrays, the box
+    method : one of METHODS
+    seed : int, makes the search deterministic
+    maxiter, popsize : DE settings (defaults scale with the dimension)
+    starts : number of multistart points (default 8 + 4 dim)
+
+    Returns
+    -------
+    SearchResult
+    """
+    if method not in METHODS:
+        from ..errors import InputError
+        raise InputError(f"unknown search method '{method}'; choose one of {METHODS}", column="method")
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    dim = lo.size
+    scale = hi - lo
+    bounds = list(zip(lo, hi))
+    if method == "de":
+        popsize = popsize or 8
+        maxiter = maxiter or (40 + 10 * dim)
+        total = (maxiter + 1) * popsize * dim
+    elif method == "multistart":
+        starts = starts or (8 + 4 * dim)
+        total = starts * 40 * dim
+    else:
+        maxiter = maxiter or 1500
+        total = maxiter
+    cnt = _Counter(fun, progress, total, f"pole search ({method})")
+    pts = []
+    try:
+        if method == "de":
+            res = optimize.differential_evolution(
+                cnt, bounds, seed=seed, popsize=popsize, maxiter=maxiter, tol=1e-7, atol=0,
+                init="sobol", polish=False, updating="deferred", mutation=(0.5, 1.0),
+                recombination=0.8)
+            pts.extend(zip(res.population_energies, res.population))
+            best = (res.fun, res.x)
+            if local_polish:
+                loc = optimize.minimize(cnt, res.x, method="L-BFGS-B", bounds=bounds,
+                                        options={"maxiter": 200})
+                if loc.fun < best[0]:
+                    best = (loc.fun, loc.x)
+                pts.append(best)
+        elif method == "multistart":
+            sob = qmc.Sobol(dim, seed=seed)
+            X0 = qmc.scale(sob.random(int(2 ** np.ceil(np.log2(starts))))[:starts], lo, hi)
+            best = (np.inf, None)
+            for x0 in X0:
+                loc = optimize.minimize(cnt, x0, method="L-BFGS-B", bounds=bounds,
+                                        options={"maxiter": 200})
+                pts.append((loc.fun, loc.x))
+                if loc.fun < best[0]:
+                    best = (loc.fun, loc.x)
+        else:
+            res = optimize.direct(cnt, bounds, maxfun=maxiter, locally_biased=True)
+            best = (res.fun, res.x)
+            if local_polish:
+                loc = optimize.minimize(cnt, res.x, method="L-BFGS-B", bounds=bounds,
+                                        options={"maxiter": 200})
+                if loc.fun < best[0]:
+                    best = (loc.fun, loc.x)
+            pts.append(best)
+    finally:
+        cnt.close()
+    return SearchResult(x=np.asarray(best[1]), fun=float(best[0]), minima=distinct_minima(pts, scale),
+                        nfev=cnt.nfev, method=method)

@@ -1,0 +1,216 @@
+"""Model structure of the scaled MIMO LTI pole search (thesis ch. 5, Figures 5-3 and 5-12).
+
+A structure says which signals enter (inputs w), which measured signals are fitted (outputs z),
+the order of the shared characteristic polynomial (n_r real + n_c complex poles, Eqn 5.2), which
+numerator terms are known to be zero (mask), the d.c.-gain constraints (Eqn 5.13-5.17) and the
+integrators appended to an output (Eqn 5.26-5.29). The SISO rigid-body model of chapter 4 is the
+special case ``siso_structure``.
+
+Numerator convention: ``b[l]`` multiplies s^(n-l) / A(s), l = 0..n (thesis Eqn 5.3).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+
+INPUT_SOURCES = ("command", "friction", "external", "feature")
+# output kind -> trace role it is measured from (integrators: how many appended to predict it)
+OUTPUT_SOURCES = {
+    "error": "cmd-act", "position": "act", "velocity": "vel", "tool_position": "tool",
+    "tool_error": "cmd-tool", "acceleration": "acc",
+}
+
+
+@dataclass
+class InputSpec:
+    """An input of the structure.
+
+    kind : ``command`` (x_r of ``axis``), ``friction`` (sat(v/v_tilde) of ``axis``, v from the
+           measured velocity), ``external`` (trace channel ``channel``), ``feature`` (a
+           nonlinear function, see DriveModel; ``params``)
+    """
+
+    kind: str
+    axis: str | None = None
+    channel: str | None = None
+    params: dict = field(default_factory=dict)
+    name: str | None = None
+
+    def __post_init__(self):
+        if self.kind not in INPUT_SOURCES:
+            raise InputError(f"input kind '{self.kind}' not in {INPUT_SOURCES}", column="inputs")
+        if self.name is None:
+            suffix = {"command": "cmd", "friction": "dnf", "external": self.channel or "ext",
+                      "feature": self.params.get("function", "feat")}[self.kind]
+            self.name = f"{self.axis}_{suffix}" if self.axis else str(suffix)
+
+
+@dataclass
+class OutputSpec:
+    """A fitted output.
+
+    kind : key of OUTPUT_SOURCES (what is measured)
+    integrators : number of integrators appended after the fit (Eqn 5.26-5.29), e.g. 2 to
+                  predict tool position from a fitted tool acceleration
+    predicts : model output kind after the integrators (default: same as ``kind``)
+    """
+
+    kind: str
+    axis: str
+    integrators: int = 0
+    predicts: str | None = None
+    name: str | None = None
+
+    def __post_init__(self):
+        if self.kind not in OUTPUT_SOURCES:
+            raise InputError(f"output kind '{self.kind}' not in {sorted(OUTPUT_SOURCES)}", column="outputs")
+        if self.predicts is None:
+            self.predicts = self.kind
+        if self.name is None:
+            self.name = f"{self.axis}_{self.kind}"
+
+
+@dataclass
+class Bounds:
+    """Search space of the poles (Hz, zeta) and of v_tilde (mm/s); all searched on log scale
+    except zeta. Each list has one (min, max) per real pole / complex pair."""
+
+    real_hz: list
+    omega_hz: list
+    zeta: list
+    v_tilde: tuple | None = None
+
+    def check(self, Ts):
+        nyq = 0.5 / Ts
+        for name, lst in (("real pole", self.real_hz), ("natural frequency", self.omega_hz)):
+            for lo, hi in lst:
+                if not (0 < lo < hi <= nyq * (1 + 1e-9)):
+                    raise InputError(f"{name} bounds [{lo}, {hi}] Hz must satisfy 0 < min < max <= "
+                                     f"Nyquist = {nyq:g} Hz", column="bounds")
+        for lo, hi in self.zeta:
+            if not (0 < lo < hi):
+                raise InputError(f"damping bounds [{lo}, {hi}] must satisfy 0 < min < max", column="bounds")
+        if self.v_tilde is not None:
+            lo, hi = self.v_tilde
+            if not (0 < lo < hi):
+                raise InputError(f"v_tilde bounds [{lo}, {hi}] mm/s must satisfy 0 < min < max",
+                                 column="bounds")
+
+
+@dataclass
+class Structure:
+    """Structure of a pole-search model.
+
+    Attributes
+    ----------
+    inputs, outputs : lists of InputSpec / OutputSpec
+    n_real, n_complex : number of real poles and complex pairs searched (Eqn 5.2)
+    locked_real_hz, locked_complex : known poles kept out of the search
+    mask : dict (output name, input name) -> tuple of allowed l (b[l] multiplies s^(n-l));
+           missing pairs allow all l; an empty tuple removes the pair
+    dc_gain : dict (output name, input name) -> (q, value): d.c. gain of order q (Eqn 5.15)
+              of the UNSCALED transfer function; b[n-q] is fixed, b[n-q+1..n] are zero
+    friction_sign : dict (output name, input name) -> +1/-1: sign the friction path's
+              low-frequency coefficient must have (section 4.4.1: d0 < 0 rejected)
+    velocity : how the measured velocity that drives friction is estimated from the encoder:
+               ``backward`` (default) the backward difference (x[k] - x[k-1]) / Ts, the same
+               definition the simulator closes the friction loop with; ``central`` the thesis's
+               central difference (section 4.3); either followed by a centred moving average of
+               ``ma_order`` samples (1 = none)
+    ma_order : moving-average order for the measured velocity
+    """
+
+    inputs: list
+    outputs: list
+    n_real: int = 1
+    n_complex: int = 1
+    locked_real_hz: list = field(default_factory=list)
+    locked_complex: list = field(default_factory=list)
+    mask: dict = field(default_factory=dict)
+    dc_gain: dict = field(default_factory=dict)
+    friction_sign: dict = field(default_factory=dict)
+    velocity: str = "backward"
+    ma_order: int = 1
+
+    @property
+    def order(self):
+        return (self.n_real + len(self.locked_real_hz)) + 2 * (self.n_complex + len(self.locked_complex))
+
+    @property
+    def axes(self):
+        out = []
+        for s in self.inputs:
+            if s.kind == "command" and s.axis not in out:
+                out.append(s.axis)
+        return out
+
+    def allowed(self, out_name, in_name):
+        """Boolean vector (n+1,) of the numerator terms estimated or fixed for this pair."""
+        n = self.order
+        allow = np.ones(n + 1, bool)
+        if (out_name, in_name) in self.mask:
+            allow[:] = False
+            for l in self.mask[(out_name, in_name)]:
+                if not 0 <= l <= n:
+                    raise InputError(f"mask term {l} is outside 0..{n} for ({out_name}, {in_name})",
+                                     column="mask")
+                allow[l] = True
+        return allow
+
+    def check(self):
+        if self.n_real < 0 or self.n_complex < 0 or self.order < 1:
+            raise InputError("the model needs at least one pole", column="order")
+        names = [s.name for s in self.inputs]
+        if len(set(names)) != len(names):
+            raise InputError(f"input names must be unique: {names}", column="inputs")
+        onames = [s.name for s in self.outputs]
+        if len(set(onames)) != len(onames):
+            raise InputError(f"output names must be unique: {onames}", column="outputs")
+        for s in self.inputs:
+            if s.kind in ("friction", "feature") and s.axis not in self.axes:
+                raise InputError(f"input {s.name} needs the command input of axis {s.axis}", column=s.name)
+        if self.velocity not in ("backward", "central"):
+            raise InputError(f"velocity estimate must be 'backward' or 'central', got '{self.velocity}'",
+                             column="velocity")
+        for key in list(self.mask) + list(self.dc_gain):
+            if key[0] not in onames or key[1] not in names:
+                raise InputError(f"({key[0]}, {key[1]}) names an unknown output or input", column="mask")
+
+
+def default_bounds(Ts, n_real, n_complex, zeta=(0.05, 2.0), lowest_hz=0.1):
+    """Default search space derived from Ts (thesis Tables 4-1, 5-1, 7-2: up to Nyquist)."""
+    nyq = 0.5 / Ts
+    hi = 0.95 * nyq
+    return Bounds(real_hz=[(lowest_hz, hi)] * n_real, omega_hz=[(max(lowest_hz, 0.5), hi)] * n_complex,
+                  zeta=[tuple(zeta)] * n_complex)
+
+
+def siso_structure(axis="x", integral_action=True, outputs=("error",), ma_order=1, friction=True,
+                   velocity="backward"):
+    """The rigid-body SISO model of thesis Eqn 4.10-4.15 as a structure.
+
+    e = (c0 s^3 + c1 s^2 + c2 s)/P(s) x_r + d0 s/P(s) sat(v/v_tilde)     (integral action)
+
+    Without integral action in the controller (P/PD loop, e.g. EMPS) the friction path also gets
+    the 1/P(s) term (d.c. gain): e_d = (d0 s + d1)/P(s) d_nf.
+    """
+    ins = [InputSpec("command", axis)]
+    if friction:
+        ins.append(InputSpec("friction", axis))
+    outs = [OutputSpec(k, axis) for k in outputs]
+    mask, sign = {}, {}
+    for o in outs:
+        if o.kind == "error":
+            mask[(o.name, ins[0].name)] = (0, 1, 2)          # (c0 s^3 + c1 s^2 + c2 s)
+            if friction:
+                mask[(o.name, ins[1].name)] = (2,) if integral_action else (2, 3)
+                sign[(o.name, ins[1].name)] = +1
+        elif o.kind == "velocity":
+            mask[(o.name, ins[0].name)] = (0, 1, 2)          # velocity: zero d.c. gain to x_r
+            if friction:
+                mask[(o.name, ins[1].name)] = (0, 1, 2) if integral_action else (0, 1, 2, 3)
+    return Structure(inputs=ins, outputs=outs, n_real=1, n_complex=1, mask=mask,
+                     friction_sign=sign, ma_order=ma_order, velocity=velocity)
