@@ -1,0 +1,239 @@
+"""CSV / TXT trace reader, including the thesis GUI .txt layouts.
+
+Two kinds of file:
+
+* **With a header line** (``layout="columns"``): comma, semicolon, tab or whitespace
+  delimited (detected from the first line, or ``delimiter=``). Column names give roles
+  and units by convention, or a mapping names them (see ``fdid_fmi.io.columns``).
+  A unit may also be written in the header as ``x_cmd [mm]`` or ``x_cmd (mm)``
+  (comma, semicolon or tab files only, since a space splits whitespace files).
+  With ``;`` or tab as delimiter and no ``.`` in the first data row, a decimal comma
+  (``1,25``) is accepted.
+* **Headerless thesis GUI files** (all numeric):
+
+  - ``layout="siso-gui"`` (thesis sec. 4.5.1): 3 columns
+    ``time [s], measured position [mm], tracking error [mm]`` -> axis ``axes[0]`` with
+    act = x and cmd = x + e (tracking error e = x_cmd - x);
+  - ``layout="verify-gui"`` (thesis sec. 4.5.2): 5 columns
+    ``time, A1 position, A1 tracking error, A2 position, A2 tracking error`` -> axes
+    ``("x", "y")`` by default.
+
+  ``layout="auto"`` (default) picks ``columns`` when the first line has a non-numeric
+  cell, else the GUI layout that fits 3 or 5 columns. The GUI columns are named
+  ``t``, ``<axis>_act``, ``<axis>_err`` (units s, mm, mm unless ``units=`` says otherwise);
+  the derived command is ``<axis>_cmd``.
+
+Lines that are blank or start with ``#`` or ``%`` are skipped. Row numbers in error
+messages are **line numbers of the file, 1-based**, so with the header on the first
+line the first data row is row 2 -- the row number a spreadsheet shows. The file is only
+read, never written.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..trace import Trace
+from .columns import assemble
+from .common import file_sha256, read_text_file
+
+LAYOUTS = ("auto", "columns", "siso-gui", "verify-gui")
+GUI_COLUMNS = {"siso-gui": 3, "verify-gui": 5}
+GUI_TEXT = {
+    "siso-gui": "time [s], measured position [mm], tracking error [mm]",
+    "verify-gui": "time [s], A1 measured position [mm], A1 tracking error [mm], "
+                  "A2 measured position [mm], A2 tracking error [mm]",
+}
+DELIMITERS = {",": "comma", ";": "semicolon", "\t": "tab", None: "whitespace"}
+_BRACKET = re.compile(r"^(.*?)\s*[\[(]\s*([^\])]*?)\s*[\])]$")
+_DECIMAL_COMMA = re.compile(r"^[+-]?\d*,\d*(?:[eE][+-]?\d+)?$")
+
+
+def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delimiter=None,
+              jitter_tol=0.05) -> Trace:
+    """Read a CSV/TXT trace.
+
+    Parameters
+    ----------
+    path : str or Path
+    mapping : dict, optional
+        ``{"t": "t_s", "x.cmd": "x_cmd_mm", "x.act": "x_motor_mm", ...}``; roles
+        cmd/act/tool/vel/acc/cur and ``err`` (tracking error). Values are column names
+        or 1-based column numbers. Without it, roles come from the column names.
+    units : dict, optional
+        ``{column: unit}`` overriding units from names / header, e.g. ``{"x_pos": "um"}``.
+    layout : {"auto", "columns", "siso-gui", "verify-gui"}
+    axes : sequence of str, optional
+        Axis names for the GUI layouts (default ``("x",)`` / ``("x", "y")``).
+    delimiter : str, optional
+        ``","``, ``";"``, ``"\\t"`` or ``"whitespace"``; detected when omitted.
+    jitter_tol : float
+        Largest relative deviation of a time step from the median step.
+
+    Returns
+    -------
+    Trace
+        Positions in mm, velocities in mm/s, time in s. ``meta`` holds ``sha256``,
+        ``layout``, ``delimiter``, ``units_in_file`` and any ``assumed_units``/``derived``.
+    """
+    src = str(path)
+    if layout is None:
+        layout = "auto"
+    if layout not in LAYOUTS:
+        raise InputError(f"unknown layout '{layout}'; expected one of {', '.join(LAYOUTS)}",
+                         source=src, column="layout")
+    text = read_text_file(path)
+    entries = [(i + 1, ln) for i, ln in enumerate(text.splitlines())
+               if ln.strip() and not ln.lstrip().startswith(("#", "%"))]
+    if not entries:
+        raise InputError("file is empty (no header and no data rows)", source=src)
+
+    delim = _pick_delimiter(entries[0][1], delimiter, src)
+    first = _split(entries[0][1], delim)
+    comma_ok = delim != ","
+    has_header = not all(_is_number(c) or (comma_ok and _DECIMAL_COMMA.match(c)) for c in first)
+    probe = _split(entries[1][1], delim) if has_header and len(entries) > 1 else first
+    decimal_comma = (comma_ok and any("," in c and _DECIMAL_COMMA.match(c) for c in probe)
+                     and not any("." in c for c in probe))
+
+    ncol = len(first)
+    if layout == "auto":
+        if has_header:
+            layout = "columns"
+        elif ncol in (3, 5) and not mapping:
+            layout = "siso-gui" if ncol == 3 else "verify-gui"
+        else:
+            layout = "columns"
+
+    file_units = {}
+    trailing = False
+    if layout in GUI_COLUMNS:
+        need = GUI_COLUMNS[layout]
+        if ncol != need:
+            raise InputError(f"layout '{layout}' expects {need} columns ({GUI_TEXT[layout]}) but "
+                             f"the first {'header' if has_header else 'data'} line has {ncol}",
+                             source=src, row=entries[0][0])
+        ax = tuple(axes) if axes else (("x",) if layout == "siso-gui" else ("x", "y"))
+        if len(ax) != need // 2:
+            raise InputError(f"layout '{layout}' needs {need // 2} axis name(s), got {list(ax)}",
+                             source=src, column="axes")
+        names = ["t"] + [f"{a}_{k}" for a in ax for k in ("act", "err")]
+        file_units = {n: ("s" if n == "t" else "mm") for n in names}
+        if mapping:
+            raise InputError(f"layout '{layout}' fixes the columns ({GUI_TEXT[layout]}); "
+                             f"a mapping is not used with it", source=src, column="mapping")
+    elif has_header:
+        names, file_units, trailing = _parse_header(first, src, entries[0][0])
+    else:
+        names = [f"col{j + 1}" for j in range(ncol)]
+        if not mapping:
+            raise InputError(f"the file has no header line and {ncol} columns; give a header "
+                             f"(e.g. t_s,x_cmd_mm,x_mm), a mapping such as t=col1 x.cmd=col2 "
+                             f"x.act=col3, or a layout ({', '.join(GUI_COLUMNS)})", source=src)
+
+    data_entries = entries[1:] if has_header else entries
+    if not data_entries:
+        raise InputError("the file has a header line but no data rows", source=src,
+                         row=entries[0][0])
+    cells = []
+    rows = np.empty(len(data_entries), dtype=np.int64)
+    width = len(names)
+    for k, (lineno, line) in enumerate(data_entries):
+        parts = _split(line, delim)
+        if trailing and len(parts) == width + 1 and parts[-1] == "":
+            parts = parts[:-1]
+        if len(parts) != width:
+            raise InputError(f"has {len(parts)} fields but the {'header' if has_header else 'first row'}"
+                             f" has {width} (ragged row; delimiter: {DELIMITERS[delim]})",
+                             source=src, row=lineno)
+        cells.append(parts)
+        rows[k] = lineno
+
+    columns = {}
+    for j, name in enumerate(names):
+        columns[name] = _to_floats([r[j] for r in cells], decimal_comma, src, name, rows)
+
+    meta = {"file": src, "sha256": file_sha256(path), "layout": layout,
+            "delimiter": DELIMITERS[delim], "header": has_header}
+    if decimal_comma:
+        meta["decimal_comma"] = True
+    if layout in GUI_COLUMNS and units:
+        for k in units:
+            if k not in names:
+                raise InputError(f"a unit is given for column '{k}'; the {layout} layout names its "
+                                 f"columns {names}", source=src, column=k)
+    return assemble(columns, source=src, mapping=mapping, units=units, file_units=file_units,
+                    rows=rows, meta=meta, jitter_tol=jitter_tol)
+
+
+# ----------------------------------------------------------------------------- helpers
+def _pick_delimiter(line, delimiter, src):
+    if delimiter is not None:
+        d = {"whitespace": None, "space": None, "tab": "\t", "\\t": "\t", "comma": ",",
+             "semicolon": ";"}.get(delimiter, delimiter)
+        if d not in DELIMITERS:
+            raise InputError(f"unknown delimiter {delimiter!r}; expected ',', ';', tab or whitespace",
+                             source=src, column="delimiter")
+        return d
+    for d in ("\t", ";", ","):
+        if d in line:
+            return d
+    return None
+
+
+def _split(line, delim):
+    if delim is None:
+        return [c.strip().strip('"').strip("'") for c in line.split()]
+    return [c.strip().strip('"').strip("'").strip() for c in line.split(delim)]
+
+
+def _is_number(cell, decimal_comma=False):
+    if decimal_comma:
+        cell = cell.replace(",", ".")
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True
+
+
+def _parse_header(cells, src, lineno):
+    trailing = len(cells) > 1 and cells[-1] == ""
+    if trailing:
+        cells = cells[:-1]
+    names, units = [], {}
+    for j, cell in enumerate(cells):
+        m = _BRACKET.match(cell)
+        name = m.group(1).strip() if m else cell
+        if not name:
+            raise InputError(f"header cell {j + 1} is empty; every column needs a name",
+                             source=src, row=lineno)
+        if name in names:
+            raise InputError(f"header names column '{name}' twice", source=src, column=name, row=lineno)
+        names.append(name)
+        if m and m.group(2).strip():
+            units[name] = m.group(2).strip()
+    return names, units, trailing
+
+
+def _to_floats(cells, decimal_comma, src, name, rows):
+    if decimal_comma:
+        cells = [c.replace(",", ".") for c in cells]
+    try:
+        return np.array([float(c) for c in cells], dtype=float)
+    except ValueError:
+        pass
+    for k, c in enumerate(cells):
+        try:
+            float(c)
+        except ValueError:
+            what = "an empty cell" if c == "" else f"'{c}'"
+            raise InputError(f"{what} is not a number", source=src, column=name, row=int(rows[k]))
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+def is_text_file(path) -> bool:
+    return Path(path).suffix.lower() in (".csv", ".txt", ".dat", ".tsv")
