@@ -1,0 +1,111 @@
+"""Quasi-static identification (thesis ch. 3, Eqn 3.2-3.6).
+
+G_er(s) = e/x_r is expanded around s = 0 (Eqn 3.2); its first three Taylor terms give the
+instantaneous tracking error from the commanded velocity, acceleration and jerk (Eqn 3.4):
+
+    e(t) ~ K_vel x_r'(t) + K_acc x_r''(t) + K_jerk x_r'''(t)
+
+The gains come from LS (Eqn 3.5) on command derivatives filtered by a zero-phase Butterworth.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..metrics import rms
+from ..model import QuasiStaticModel
+from ..signals import filtered_derivatives
+
+
+def default_cutoff(Ts):
+    """Default Butterworth cutoff for the command derivatives: min(50 Hz, 0.2 x Nyquist)."""
+    return min(50.0, 0.1 / Ts)
+
+
+def identify_quasi_static(traces, axes=None, cutoff_hz=None, order=2):
+    """Quasi-static model of each axis (Eqn 3.5).
+
+    Parameters
+    ----------
+    traces : Trace or list[Trace] (data ranges)
+    axes : list of axis names (default: every axis with cmd and act)
+    cutoff_hz, order : Butterworth filter of the command derivatives
+
+    Returns
+    -------
+    QuasiStaticModel
+    """
+    traces = [traces] if not isinstance(traces, (list, tuple)) else list(traces)
+    Ts = traces[0].Ts
+    axes = axes or [a for a in traces[0].axes if traces[0].has(a, "cmd") and traces[0].has(a, "act")]
+    if not axes:
+        raise InputError("no axis with both commanded and measured position", source=traces[0].source)
+    cutoff_hz = cutoff_hz or default_cutoff(Ts)
+    gains, metrics = {}, {}
+    for ax in axes:
+        Phi, Y = [], []
+        for tr in traces:
+            Phi.append(np.column_stack(filtered_derivatives(tr.cmd(ax), Ts, cutoff_hz, order, 3)))
+            Y.append(tr.error(ax))
+        Phi, Y = np.vstack(Phi), np.concatenate(Y)
+        if np.ptp(np.concatenate([tr.cmd(ax) for tr in traces])) <= 0:
+            raise InputError(f"axis '{ax}' does not move in the data range: nothing to identify",
+                             source=traces[0].source, column=f"{ax}.cmd")
+        scale = np.max(np.abs(Phi), axis=0)
+        scale[scale == 0] = 1.0
+        theta = np.linalg.lstsq(Phi / scale, Y, rcond=None)[0] / scale
+        gains[ax] = {"K_vel": float(theta[0]), "K_acc": float(theta[1]), "K_jerk": float(theta[2])}
+        metrics[ax] = {"fit_rms_um": rms(Y - Phi @ theta) * 1e3, "error_rms_um": rms(Y) * 1e3}
+    return QuasiStaticModel(Ts=Ts, gains=gains, cutoff_hz=float(cutoff_hz), order=int(order),
+                            metrics=metrics,
+                            provenance={"data": [{"source": tr.source, "sha256": tr.meta.get("sha256")
+                                                  or tr.fingerprint()} for tr in traces]})
+
+
+def predict_quasi_static(model, cmds, t):
+    """Tracking-error prediction of a QuasiStaticModel (Eqn 3.4); returns a SimResult."""
+    from ..simulate import SimResult
+    Ts = float(np.median(np.diff(t)))
+    if abs(Ts - model.Ts) > 1e-3 * model.Ts:
+        raise InputError(f"commands are sampled at {Ts:g} s but the model at {model.Ts:g} s", column="Ts")
+    axes, cols = {}, []
+    for ax in model.axes:
+        if ax not in cmds:
+            raise InputError(f"no command for axis '{ax}'", column=ax)
+        v, a, j = filtered_derivatives(cmds[ax], Ts, model.cutoff_hz, model.order, 3)
+        g = model.gains[ax]
+        e = g["K_vel"] * v + g["K_acc"] * a + g["K_jerk"] * j
+        x = np.asarray(cmds[ax], float) - e
+        vel = np.gradient(x, Ts)
+        axes[ax] = {"position": x, "error": e, "velocity": vel}
+        cols += [x, e]
+    names = [n for ax in model.axes for n in (f"{ax}_pos", f"{ax}_err")]
+    return SimResult(t=np.asarray(t), y=np.column_stack(cols), u=np.zeros((len(t), 0)), axes=axes,
+                     output_names=names)
+
+
+def feed_limits(model, axis, e_max_mm, v_max=None, a_max=None, j_max=None):
+    """Feed-limit check of Eqn 3.6: |K_vel v| + |K_acc a| + |K_jerk j| <= e_max.
+
+    Give any of the limits (mm/s, mm/s^2, mm/s^3); returns the predicted worst-case error of the
+    given limits, whether it is within ``e_max_mm``, and, for each limit left out, the largest value
+    that keeps the error inside e_max with the others (the budget left).
+    """
+    if not e_max_mm > 0:
+        raise InputError(f"e_max must be > 0 mm, got {e_max_mm!r}", column="e_max")
+    g = model.gains.get(axis)
+    if g is None:
+        raise InputError(f"the model has no axis '{axis}' (axes: {model.axes})", column="axis")
+    terms = {"v_max": (abs(g["K_vel"]), v_max), "a_max": (abs(g["K_acc"]), a_max),
+             "j_max": (abs(g["K_jerk"]), j_max)}
+    for name, (_, val) in terms.items():
+        if val is not None and not val >= 0:
+            raise InputError(f"{name} must be >= 0, got {val!r}", column=name)
+    used = sum(k * v for k, v in terms.values() if v is not None)
+    out = {"axis": axis, "e_max_mm": e_max_mm, "predicted_max_error_mm": used, "within": used <= e_max_mm,
+           "allowed": {}}
+    left = e_max_mm - used
+    for name, (k, val) in terms.items():
+        if val is None:
+            out["allowed"][name] = (left / k if k > 0 else float("inf")) if left > 0 else 0.0
+    return out
