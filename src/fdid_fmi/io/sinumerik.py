@@ -71,10 +71,11 @@ def decode_base85_words(text, *, source=None, name=None) -> np.ndarray:
         if bad:
             raise InputError(f"base-85 array ends with an incomplete group '{bad[0]}' (5 symbols "
                              f"expected)", source=source, column=name)
-        codes = np.frombuffer("".join(toks[i] for i in full).encode("latin-1"), dtype=np.uint8)
-        digits = _LUT[codes].reshape(-1, 5)
+        joined = "".join(toks[i] for i in full)
+        codes = np.fromiter(map(ord, joined), dtype=np.int64, count=len(joined))
+        digits = np.where(codes < 256, _LUT[np.minimum(codes, 255)], -1).reshape(-1, 5)
         if (digits < 0).any():
-            ch = chr(codes[np.argmax(_LUT[codes] < 0)])
+            ch = joined[int(np.argmax(digits.ravel() < 0))]
             raise InputError(f"symbol {ch!r} is not in the base-85 alphabet", source=source, column=name)
         vals = digits @ (85 ** np.arange(4, -1, -1, dtype=np.int64))
         if (vals > 0xFFFFFFFF).any():
