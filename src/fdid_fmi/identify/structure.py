@@ -214,3 +214,74 @@ def siso_structure(axis="x", integral_action=True, outputs=("error",), ma_order=
                 mask[(o.name, ins[1].name)] = (0, 1, 2) if integral_action else (0, 1, 2, 3)
     return Structure(inputs=ins, outputs=outs, n_real=1, n_complex=1, mask=mask,
                      friction_sign=sign, ma_order=ma_order, velocity=velocity)
+
+
+def default_mask(out_kind, in_kind, n, integral_action=True):
+    """Numerator terms (l: b[l] multiplies s^(n-l)) a pair may have, from the physics.
+
+    - tracking error / velocity from the command: zero d.c. gain (no s^0 term);
+    - positions from the command: all terms (d.c. gain 1 is fitted, or constrained);
+    - friction to error / positions: strictly proper; no d.c. gain with integral action in the
+      controller (the thesis's s/P(s)), a d.c. gain without it (P/PD loops such as EMPS);
+    - accelerations: the terms that survive the appended integrators (handled in LSProblem).
+    """
+    if in_kind == "command":
+        if out_kind in ("error", "velocity", "tool_error"):
+            return tuple(range(0, n))
+        return tuple(range(0, n + 1))
+    if in_kind in ("friction", "feature", "external"):
+        top = n + 1 if not integral_action else n
+        if out_kind == "velocity":
+            return tuple(range(0, top))
+        return tuple(range(1, top))
+    return tuple(range(0, n + 1))
+
+
+def mimo_structure(axes=("x",), outputs=("error",), n_real=1, n_complex=1, coupled=False,
+                   friction=True, integral_action=True, integrators=None, dc_gain=None,
+                   locked_complex=(), locked_real=(), velocity="backward", ma_order=1, externals=()):
+    """Build a MIMO structure (thesis Figure 5-3 / 5-12 / 7-8).
+
+    Parameters
+    ----------
+    axes : axis names; ``coupled=True`` shares one denominator and lets every output depend on
+        every input (the 6th-order two-axis model); otherwise pass one axis at a time
+    outputs : output kinds per axis (``error``, ``velocity``, ``position``, ``tool_position``,
+        ``tool_error``, ``acceleration``)
+    integrators : dict output kind -> number of integrators appended (``{"acceleration": 2}``
+        predicts the tool-side position from a fitted tool acceleration)
+    dc_gain : dict output kind -> (q, value) for the own-axis command input (Eqn 5.15)
+    externals : extra trace channels used as inputs (each with its own numerator)
+    """
+    integrators = integrators or {}
+    dc_gain = dc_gain or {}
+    if not coupled and len(axes) > 1:
+        raise InputError("a decoupled structure has one axis; identify the axes one by one",
+                         column="axes")
+    ins = []
+    for ax in axes:
+        ins.append(InputSpec("command", ax))
+        if friction:
+            ins.append(InputSpec("friction", ax))
+    for ch in externals:
+        ins.append(InputSpec("external", axes[0], channel=ch, name=ch))
+    outs = []
+    for ax in axes:
+        for k in outputs:
+            q = integrators.get(k, 0)
+            predicts = {"acceleration": "tool_position"}.get(k, k) if q == 2 else k
+            outs.append(OutputSpec(k, ax, integrators=q, predicts=predicts))
+    n = (n_real + len(locked_real)) + 2 * (n_complex + len(locked_complex))
+    mask, sign, dcg = {}, {}, {}
+    for o in outs:
+        for s in ins:
+            if not coupled and s.axis != o.axis and s.kind != "external":
+                continue
+            mask[(o.name, s.name)] = default_mask(o.kind, s.kind, n, integral_action)
+            if s.kind == "friction" and s.axis == o.axis and o.kind == "error":
+                sign[(o.name, s.name)] = +1
+            if s.kind == "command" and s.axis == o.axis and o.kind in dc_gain:
+                dcg[(o.name, s.name)] = tuple(dc_gain[o.kind])
+    return Structure(inputs=ins, outputs=outs, n_real=n_real, n_complex=n_complex,
+                     locked_real_hz=list(locked_real), locked_complex=list(locked_complex), mask=mask,
+                     dc_gain=dcg, friction_sign=sign, velocity=velocity, ma_order=ma_order)
