@@ -87,9 +87,12 @@ def test_speed_loop_gain_from_time_series(sat):
     assert frf.gain[1] == pytest.approx(0.5, abs=0.05)
     assert -30 < frf.phase_deg[0] < -15 and -110 < frf.phase_deg[1] < -80   # a lag, as a loop must
     assert frf.n_avg == 2 and np.all(frf.coherence > 0.99)
-    full = speed_loop_frf(sat)                           # all bins: a low-pass, ~55-60 Hz bandwidth
-    bw = full.freq_hz[np.argmax(full.gain < 1 / np.sqrt(2))]
-    assert 45 < bw < 70
+    # all bins: a low-pass with ~55-60 Hz bandwidth (README). The raw gain is ragged from bin
+    # to bin (SAT's own stored H is too), so take the -3 dB crossing of a 5-bin moving average.
+    full = speed_loop_frf(sat)
+    g = np.convolve(full.gain, np.ones(5) / 5, mode="same")
+    bw = full.freq_hz[2 + np.argmax(g[2:] < 1 / np.sqrt(2))]   # measured: 54.7 Hz
+    assert 45 < bw < 65
 
 
 def test_speed_loop_gain_per_direction(sat):
