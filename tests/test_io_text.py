@@ -272,3 +272,13 @@ def test_commanded_velocity_is_an_extra_and_velocity_named_position_is_refused(t
     assert tr.extra_channels == ["x_cmd_mm_s"] and tr.channels["x_cmd_mm_s"].unit == "mm_s"
     e = err(tmp_path, "t_s,x_cmd_mm,x_mm,x_v_mm\n0,1,1,0\n1,2,2,1\n")
     assert e.column == "x_v_mm" and "the name says vel" in str(e)
+
+
+def test_units_row_under_the_header(tmp_path):
+    text = "time;pos_x;x_v\ns;um;mm/min\n0;1000;60\n0,5;2000;120\n1;3000;180\n"
+    tr = read_trace(write(tmp_path, text))
+    np.testing.assert_allclose(tr.t, [0, 0.5, 1.0])
+    np.testing.assert_allclose(tr.act("x"), [1, 2, 3])      # "pos_x": axis last is fine too
+    np.testing.assert_allclose(tr.get("x", "vel"), [1, 2, 3])
+    e = err(tmp_path, "t,x_cmd,x\ns,mm,furlong\n0,1,1\n1,2,2\n")
+    assert e.column == "x" and "unknown unit 'furlong'" in str(e)

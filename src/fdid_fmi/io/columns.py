@@ -3,9 +3,10 @@
 Shared by the text and MATLAB readers, so both find roles and units the same way.
 
 Roles are taken either from an explicit *mapping* or from column-name conventions
-(the mapping wins: when one is given, only the columns it names get roles and every
-other column is kept as an extra channel; the time column is still found by name when
-the mapping does not name it).
+(the mapping wins: when it names any role, only the columns it names get roles and
+every other column is kept as an extra channel; the time column is still found by name
+when the mapping does not name it, and a mapping naming only ``t`` leaves the roles to
+the name rules). Axis names in a mapping are used as written.
 
 Name conventions (case-insensitive, tokens separated by ``_``; the unit suffix is
 removed first, see ``fdid_fmi.units.unit_from_suffix``):
@@ -23,8 +24,9 @@ column name                                 meaning
 ``x_e_mm``, ``x_err_mm``                    tracking error e = x_cmd - x (err)
 ==========================================  ==================================
 
-The first token must be an axis name: ``x y z a b c u v w`` optionally followed by
-digits (``a1``, ``x2``), or ``axis1``. A commanded velocity/acceleration (``x_v_cmd``)
+The first (or else the last: ``pos_x``, ``cmd_y``) token must be an axis name:
+``x y z a b c u v w`` optionally followed by digits (``a1``, ``x2``), or ``axis1``; axis
+names found this way are lower case. A commanded velocity/acceleration (``x_v_cmd``)
 is not a role and stays an extra channel. The unit must fit the role (a position unit
 for cmd/act/tool/err, a velocity unit for vel, ...); a column whose name says one thing
 and whose unit says another is refused with a clear message.
@@ -138,20 +140,20 @@ def _role_from_tokens(tokens):
     return None
 
 
-def _reconcile(role, quantity, explicit):
-    """Reconcile a name-derived role with the unit's quantity.
+def _reconcile(role, quantity):
+    """Reconcile a name-derived role with the unit's quantity (name conventions only).
 
-    Returns (role or None, problem message or None).
+    Returns (role or None, problem or None): None role = not a role (extra channel).
     """
     if quantity is None or quantity in ROLE_QUANTITIES[role]:
         return role, None
     if quantity == "time":
-        return (None, None) if not explicit else (role, "a time unit")
+        return None, None
     implied = QUANTITY_ROLE.get(quantity)
-    if not explicit and implied is not None and role in ("act", "tool"):
+    if implied is not None and role in ("act", "tool"):
         return implied, None  # "x_motor_mm_s": motor velocity
-    if not explicit and role in ("cmd", "err") and implied in ("vel", "acc"):
-        return None, None  # commanded velocity / derivative of error: extra channel
+    if role in ("cmd", "err") and implied in ("vel", "acc"):
+        return None, None  # commanded velocity / error rate: extra channel
     return role, f"a {quantity} unit"
 
 
@@ -228,7 +230,7 @@ def assemble(columns, *, source, mapping=None, units=None, file_units=None, rows
     if mapping:
         mapping = dict(mapping)
         for key in list(mapping):
-            if parse_key(key, source)[0] == "t" and parse_key(key, source)[1] is None:
+            if parse_key(key, source) == ("t", None):
                 tcol = _resolve_column(mapping.pop(key), names, source, key)
     if tcol is None:
         cands = [c for c in names if _is_time_name(split_unit(c)[0])
@@ -248,8 +250,7 @@ def assemble(columns, *, source, mapping=None, units=None, file_units=None, rows
     # ---- roles
     roles = {}  # axis -> role -> column
     errs = {}   # axis -> column (tracking error)
-    explicit = bool(mapping)
-    if explicit:
+    if mapping:
         for key, value in mapping.items():
             axis, role = parse_key(key, source)
             col = _resolve_column(value, names, source, key)
@@ -271,20 +272,24 @@ def assemble(columns, *, source, mapping=None, units=None, file_units=None, rows
                 continue
             base = split_unit(col)[0]
             tokens = [t for t in re.split(r"[_\s.\-]+", base.lower()) if t]
-            if len(tokens) < 1 or not AXIS_RE.match(tokens[0]):
+            if tokens and AXIS_RE.match(tokens[0]):
+                axis, rest = tokens[0], tokens[1:]
+            elif len(tokens) > 1 and AXIS_RE.match(tokens[-1]):
+                axis, rest = tokens[-1], tokens[:-1]     # "pos_x", "cmd_x", "v_y"
+            else:
                 continue
-            role = _role_from_tokens(tokens[1:])
+            role = _role_from_tokens(rest)
             if role is None:
                 continue
             q = U.UNITS[stated[col]][0] if stated[col] else None
-            role, problem = _reconcile(role, q, explicit=False)
+            role, problem = _reconcile(role, q)
             if role is None:
                 continue
             if problem:
-                raise InputError(f"the name says {role} of axis '{tokens[0]}' but the unit "
+                raise InputError(f"the name says {role} of axis '{axis}' but the unit "
                                  f"'{stated[col]}' is {problem}; rename the column, give its unit "
                                  f"(COL=UNIT) or map it explicitly", source=source, column=col)
-            claims.setdefault((tokens[0], role), []).append(col)
+            claims.setdefault((axis, role), []).append(col)
         for (axis, role), cols in claims.items():
             if len(cols) > 1:
                 raise InputError(f"columns {cols} all look like {axis}.{role}; say which one with a "

@@ -95,7 +95,9 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
     first = _split(entries[0][1], delim)
     comma_ok = delim != ","
     has_header = not all(_is_number(c) or (comma_ok and _DECIMAL_COMMA.match(c)) for c in first)
-    probe = _split(entries[1][1], delim) if has_header and len(entries) > 1 else first
+    # decimal comma: some cell of the first data rows looks like "1,25" and none has a "."
+    probe = [_split(ln, delim) for _, ln in entries[int(has_header):200]]
+    probe = [c for r in probe if not (has_header and _is_units_row(r, len(first), True)) for c in r]
     decimal_comma = (comma_ok and any("," in c and _DECIMAL_COMMA.match(c) for c in probe)
                      and not any("." in c for c in probe))
 
@@ -110,6 +112,7 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
 
     file_units = {}
     trailing = False
+    units_row = False
     if layout in GUI_COLUMNS:
         need = GUI_COLUMNS[layout]
         if ncol != need:
@@ -127,6 +130,13 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
                              f"a mapping is not used with it", source=src, column="mapping")
     elif has_header:
         names, file_units, trailing = _parse_header(first, src, entries[0][0])
+        if len(entries) > 1 and _is_units_row(_split(entries[1][1], delim), len(names), comma_ok):
+            urow = _split(entries[1][1], delim)[:len(names)]
+            for name, u in zip(names, urow):
+                u = u.strip("[]() ")
+                if u and name not in file_units:
+                    file_units[name] = u
+            units_row = True
     else:
         names = [f"col{j + 1}" for j in range(ncol)]
         if not mapping:
@@ -134,7 +144,7 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
                              f"(e.g. t_s,x_cmd_mm,x_mm), a mapping such as t=col1 x.cmd=col2 "
                              f"x.act=col3, or a layout ({', '.join(GUI_COLUMNS)})", source=src)
 
-    data_entries = entries[1:] if has_header else entries
+    data_entries = entries[(1 + units_row):] if has_header else entries
     if not data_entries:
         raise InputError("the file has a header line but no data rows", source=src,
                          row=entries[0][0])
@@ -198,6 +208,13 @@ def _is_number(cell, decimal_comma=False):
     except ValueError:
         return False
     return True
+
+
+def _is_units_row(cells, width, comma_ok):
+    """A second header line holding units (``s, mm, mm/s``): no cell is a number."""
+    cells = [c for c in cells if c != ""]
+    return (0 < len(cells) <= width
+            and not any(_is_number(c) or (comma_ok and _DECIMAL_COMMA.match(c)) for c in cells))
 
 
 def _parse_header(cells, src, lineno):
