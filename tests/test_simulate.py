@@ -1,0 +1,142 @@
+"""The reference simulator: exact friction solve, steady-ramp start, offsets, JSON round trip."""
+import itertools
+
+import numpy as np
+import pytest
+
+from fdid_fmi.errors import InputError
+from fdid_fmi.identify import regressors as rg
+from fdid_fmi.identify.lsfit import Fit
+from fdid_fmi.identify.pole_search import assemble
+from fdid_fmi.identify.structure import mimo_structure, siso_structure
+from fdid_fmi.model import DriveModel, load_model
+from fdid_fmi.simulate import simulate, solve_friction
+
+TS = 1e-3
+
+
+def siso_model(d0=800.0, v_tilde=0.5):
+    a = rg.characteristic_polynomial([40.0], [(12.0, 0.9)])
+    st = siso_structure("x")
+    b = {("x_error", "x_cmd"): np.array([0.05, 0.7 * a[1], 0.9 * a[2], 0.0]),
+         ("x_error", "x_dnf"): np.array([0.0, 0.0, d0, 0.0])}
+    return assemble(st, Fit(J=0, a=a, b=b, rms=None, feasible=True, v_tilde={"x": v_tilde}), TS)
+
+
+def moves(n=3000, seed=0):
+    from scipy import signal
+    rng = np.random.default_rng(seed)
+    steps = np.repeat(rng.uniform(-10, 10, n // 500 + 1).cumsum(), 500)[:n]
+    steps[:300] = steps[300]
+    return signal.sosfiltfilt(signal.butter(3, 3.0, fs=1 / TS, output="sos"), steps)
+
+
+def test_friction_solve_is_exact_for_one_input():
+    rng = np.random.default_rng(1)
+    for _ in range(500):
+        alpha, beta = rng.normal(0, 5), -abs(rng.normal(0, 50))
+        L, vt = rng.uniform(0.1, 2), rng.uniform(0.01, 1)
+        d = solve_friction(np.array([alpha]), np.array([[beta]]), [L], [vt], [(0,), (1,), (-1,)])[0]
+        assert abs(d - L * np.clip((alpha + beta * d) / vt, -1, 1)) < 1e-9
+        assert abs(d) <= L + 1e-12
+
+
+def test_friction_solve_two_coupled_inputs():
+    rng = np.random.default_rng(2)
+    branches = list(itertools.product((0, 1, -1), repeat=2))
+    for _ in range(300):
+        alpha = rng.normal(0, 3, 2)
+        beta = -np.diag(np.abs(rng.normal(0, 30, 2))) + rng.normal(0, 2, (2, 2)) * (1 - np.eye(2))
+        L, vt = rng.uniform(0.1, 2, 2), rng.uniform(0.05, 1, 2)
+        d = solve_friction(alpha, beta, L, vt, branches)
+        np.testing.assert_allclose(d, L * np.clip((alpha + beta @ d) / vt, -1, 1), atol=1e-9)
+
+
+def test_exact_solve_does_not_limit_cycle_at_rest():
+    """With L*|beta|/v_tilde >> 1 a one-sample lag would chatter; the exact solve settles."""
+    m = siso_model(d0=5000.0, v_tilde=0.05)
+    xr = np.concatenate([moves(2000), np.full(2000, moves(2000)[-1])])
+    sim = simulate(m, {"x": xr}, Ts=TS)
+    v_rest = sim.axes["x"]["velocity"][-1000:]
+    reversals = np.sum(np.diff(np.sign(v_rest[np.abs(v_rest) > 1e-9])) != 0)
+    assert reversals <= 2
+    # no sample-to-sample chatter: the friction acts as a (stiff) viscous band and the axis creeps
+    assert np.max(np.abs(np.diff(v_rest))) < 1e-3
+    assert np.max(np.abs(v_rest)) < 0.1
+
+
+def test_steady_ramp_start_has_no_transient():
+    m = siso_model()
+    xr = 100.0 + 50.0 * TS * np.arange(2000)       # 50 mm/s from the first sample on
+    sim = simulate(m, {"x": xr}, Ts=TS, start_velocity={"x": 50.0})
+    e = sim.axes["x"]["error"]
+    assert np.ptp(e) < 1e-9 * max(1.0, abs(e[0]))
+    assert abs(e[0]) > 1e-4                         # a real following error, constant
+    np.testing.assert_allclose(sim.axes["x"]["velocity"], 50.0, rtol=1e-9)
+
+
+def test_offset_invariance():
+    m = siso_model()
+    xr = moves()
+    a = simulate(m, {"x": xr}, Ts=TS)
+    b = simulate(m, {"x": xr + 1234.5}, Ts=TS)
+    np.testing.assert_allclose(b.axes["x"]["error"], a.axes["x"]["error"], atol=1e-9)
+    np.testing.assert_allclose(b.axes["x"]["position"] - 1234.5, a.axes["x"]["position"], atol=1e-9)
+
+
+def test_friction_parameters_switch_friction():
+    m = siso_model()
+    xr = moves()
+    on = simulate(m, {"x": xr}, Ts=TS)
+    off = simulate(m, {"x": xr}, Ts=TS, params={"x_friction_on": False})
+    half = simulate(m, {"x": xr}, Ts=TS, params={"x_friction_level": 0.5})
+    assert np.all(off.u[:, 1] == 0) and np.max(np.abs(on.u[:, 1])) == pytest.approx(1.0)
+    assert np.max(np.abs(half.u[:, 1])) == pytest.approx(0.5)
+    assert np.max(np.abs(on.axes["x"]["error"] - off.axes["x"]["error"])) > 1e-3
+
+
+def test_json_round_trip(tmp_path):
+    m = siso_model()
+    p = m.save(tmp_path / "m.json")
+    m2 = load_model(p)
+    xr = moves()
+    np.testing.assert_array_equal(simulate(m, {"x": xr}, Ts=TS).y, simulate(m2, {"x": xr}, Ts=TS).y)
+    assert [q.name for q in m2.inputs] == ["x_cmd", "x_dnf"]
+
+
+def test_bad_models_are_rejected(tmp_path):
+    m = siso_model()
+    d = m.to_dict()
+    d["A"][0][0] = 5.0
+    with pytest.raises(InputError, match="not stable"):
+        DriveModel.from_dict(d)
+    (tmp_path / "bad.json").write_text("{not json")
+    with pytest.raises(InputError, match="bad.json"):
+        load_model(tmp_path / "bad.json")
+    d = m.to_dict()
+    d["format_version"] = 99
+    with pytest.raises(InputError, match="newer"):
+        DriveModel.from_dict(d)
+
+
+def test_commands_at_other_sample_time_are_refused():
+    m = siso_model()
+    with pytest.raises(InputError, match="resample"):
+        simulate(m, {"x": moves()}, Ts=2e-3)
+
+
+def test_two_axis_coupled_model_simulates():
+    st = mimo_structure(("x", "y"), ("error",), 2, 2, coupled=True)
+    a = rg.characteristic_polynomial([5.0, 60.0], [(20.0, 0.5), (30.0, 0.3)])
+    rng = np.random.default_rng(3)
+    b = {}
+    for o in st.outputs:
+        for s in st.inputs:
+            bb = np.zeros(7)
+            allowed = list(st.mask[(o.name, s.name)])
+            bb[allowed] = rng.normal(0, 1, len(allowed)) * a[np.array(allowed)] * 0.1
+            b[(o.name, s.name)] = bb
+    m = assemble(st, Fit(J=0, a=a, b=b, rms=None, feasible=True, v_tilde={"x": 0.5, "y": 0.5}), TS)
+    sim = simulate(m, {"x": moves(seed=1), "y": moves(seed=2)}, Ts=TS)
+    assert np.all(np.isfinite(sim.y)) and set(sim.axes) == {"x", "y"}
+    assert np.max(np.abs(sim.u[:, [1, 3]])) <= 1.0 + 1e-12
