@@ -282,3 +282,14 @@ def test_units_row_under_the_header(tmp_path):
     np.testing.assert_allclose(tr.get("x", "vel"), [1, 2, 3])
     e = err(tmp_path, "t,x_cmd,x\ns,mm,furlong\n0,1,1\n1,2,2\n")
     assert e.column == "x" and "unknown unit 'furlong'" in str(e)
+
+
+def test_gui_layout_skips_a_header_line(tmp_path):
+    text = "Time(sec) Position(mm) Error(mm)\n0 0 0.01\n0.001 0.1 0.02\n0.002 0.2 0.03\n"
+    tr = read_trace(write(tmp_path, text, "gui.txt"), layout="siso-gui")
+    np.testing.assert_allclose(tr.cmd("x"), [0.01, 0.12, 0.23])
+    # without the layout the header is read as column names: time found, no axis roles
+    plain = read_trace(write(tmp_path, text, "gui.txt"))
+    assert plain.roles == {} and plain.extra_channels == ["Position", "Error"]
+    with pytest.raises(InputError, match="'cmd' channel of axis 'x'"):
+        plain.cmd("x")
