@@ -293,3 +293,11 @@ def test_gui_layout_skips_a_header_line(tmp_path):
     assert plain.roles == {} and plain.extra_channels == ["Position", "Error"]
     with pytest.raises(InputError, match="'cmd' channel of axis 'x'"):
         plain.cmd("x")
+
+
+def test_trailing_delimiter(tmp_path):
+    tr = read_trace(write(tmp_path, "t_s,x_cmd_mm,x_mm,\n0,1,1,\n1,2,2,\n"))
+    np.testing.assert_allclose(tr.cmd("x"), [1, 2])
+    tr = read_trace(write(tmp_path, "0;0;0,01;\n1;0,1;0,02;\n2;0,2;0,03;\n", "gui.txt"))
+    assert tr.meta["layout"] == "siso-gui"
+    np.testing.assert_allclose(tr.cmd("x"), [0.01, 0.12, 0.23])

@@ -93,6 +93,9 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
 
     delim = _pick_delimiter(entries[0][1], delimiter, src)
     first = _split(entries[0][1], delim)
+    trailing = delim is not None and len(first) > 1 and first[-1] == ""  # "a,b,c," lines
+    if trailing:
+        first = first[:-1]
     comma_ok = delim != ","
     has_header = not all(_is_number(c) or (comma_ok and _DECIMAL_COMMA.match(c)) for c in first)
     # decimal comma: some cell of the first data rows looks like "1,25" and none has a "."
@@ -111,14 +114,16 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
             layout = "columns"
 
     file_units = {}
-    trailing = False
     units_row = False
     if layout in GUI_COLUMNS:
         need = GUI_COLUMNS[layout]
-        if ncol != need:
+        k0 = int(has_header) if len(entries) > int(has_header) else 0
+        row0 = _split(entries[k0][1], delim)
+        if trailing and row0 and row0[-1] == "":
+            row0 = row0[:-1]
+        if len(row0) != need:
             raise InputError(f"layout '{layout}' expects {need} columns ({GUI_TEXT[layout]}) but "
-                             f"the first {'header' if has_header else 'data'} line has {ncol}",
-                             source=src, row=entries[0][0])
+                             f"the first data line has {len(row0)}", source=src, row=entries[k0][0])
         ax = tuple(axes) if axes else (("x",) if layout == "siso-gui" else ("x", "y"))
         if len(ax) != need // 2:
             raise InputError(f"layout '{layout}' needs {need // 2} axis name(s), got {list(ax)}",
@@ -129,7 +134,7 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
             raise InputError(f"layout '{layout}' fixes the columns ({GUI_TEXT[layout]}); "
                              f"a mapping is not used with it", source=src, column="mapping")
     elif has_header:
-        names, file_units, trailing = _parse_header(first, src, entries[0][0])
+        names, file_units = _parse_header(first, src, entries[0][0])
         if len(entries) > 1 and _is_units_row(_split(entries[1][1], delim), len(names), comma_ok):
             urow = _split(entries[1][1], delim)[:len(names)]
             for name, u in zip(names, urow):
@@ -218,9 +223,6 @@ def _is_units_row(cells, width, comma_ok):
 
 
 def _parse_header(cells, src, lineno):
-    trailing = len(cells) > 1 and cells[-1] == ""
-    if trailing:
-        cells = cells[:-1]
     names, units = [], {}
     for j, cell in enumerate(cells):
         m = _BRACKET.match(cell)
@@ -233,7 +235,7 @@ def _parse_header(cells, src, lineno):
         names.append(name)
         if m and m.group(2).strip():
             units[name] = m.group(2).strip()
-    return names, units, trailing
+    return names, units
 
 
 def _to_floats(cells, decimal_comma, src, name, rows):
