@@ -16,7 +16,6 @@ for bad input. No reader writes to the user's file.
 """
 from __future__ import annotations
 
-from pathlib import Path
 
 from ..errors import InputError
 from ..trace import Trace
