@@ -180,7 +180,45 @@ def solve_friction(alpha, beta, level, vt, branches):
     return np.array([level[i] * _sat(alpha[i] / vt[i]) for i in range(m)])
 
 
-def simulate(model, trace_or_commands, Ts=None, start_velocity=None, params=None, externals=None):
+def run_up(cmds, Ts, max_seconds=2.0):
+    """Samples of command to prepend so that a record that starts accelerating starts at rest.
+
+    A record cut out of a motion (EMPS starts at 14 mm/s, accelerating at 840 mm/s^2) has a
+    start-up transient whatever steady state it is started from. The commands' first three
+    samples define a parabola u0 + k du + k^2 dd; when its vertex (the rest point) lies in the
+    past within ``max_seconds``, the parabola back to the vertex is a run-up that starts at rest
+    and reaches the first sample with the right position, velocity and acceleration.
+
+    Returns
+    -------
+    R : int, run-up length in samples (0: none needed or not plausible)
+    ext : dict axis -> extended commands (run-up + commands)
+    """
+    R = 0
+    for c in cmds.values():
+        if len(c) < 3:
+            continue
+        dd = 0.5 * (c[2] - 2 * c[1] + c[0])
+        du = c[1] - c[0] - dd
+        if dd != 0 and du != 0 and np.sign(dd) == np.sign(du):
+            kv = du / (2 * dd)          # vertex at k = -kv
+            if kv * Ts <= max_seconds:
+                R = max(R, int(np.ceil(kv)))
+    if R == 0:
+        return 0, dict(cmds)
+    ext = {}
+    k = np.arange(-R, 0, dtype=float)
+    for a, c in cmds.items():
+        dd = 0.5 * (c[2] - 2 * c[1] + c[0])
+        du = c[1] - c[0] - dd
+        kv = du / (2 * dd) if dd != 0 else np.inf
+        kk = np.maximum(k, -kv) if np.isfinite(kv) and np.sign(dd) == np.sign(du) else np.zeros_like(k)
+        ext[a] = np.concatenate([c[0] + kk * du + kk * kk * dd, c])
+    return R, ext
+
+
+def simulate(model, trace_or_commands, Ts=None, start_velocity=None, params=None, externals=None,
+             start="auto"):
     """Free-run simulation of a model from commanded inputs alone.
 
     Parameters
@@ -192,6 +230,10 @@ def simulate(model, trace_or_commands, Ts=None, start_velocity=None, params=None
     start_velocity : dict axis -> mm/s, optional
         Initial velocity v0 of each axis. Default: 0 (at rest) for command dicts; for a Trace,
         the commanded velocity of its first two samples (a record that starts in motion).
+    start : ``"auto"`` (default) or ``"ramp"``
+        ``auto``: a Trace that starts accelerating gets a run-up from rest (:func:`run_up`), the
+        most consistent initial state; otherwise (and always with ``ramp``) the steady ramp
+        at ``start_velocity``.
     params : dict, optional
         Parameter overrides like the FMU's: ``<axis>_friction_on``, ``<axis>_friction_level``,
         ``<axis>_v_tilde``.
@@ -213,7 +255,21 @@ def simulate(model, trace_or_commands, Ts=None, start_velocity=None, params=None
         start_velocity = ({a: (c[1] - c[0]) / ts for a, c in cmds.items()}
                           if isinstance(trace_or_commands, Trace) else {})
     plan = _Plan(model, params)
+    if start == "auto" and isinstance(trace_or_commands, Trace):
+        R, ext = run_up(cmds, ts)
+        if R:
+            exts_r = {k: np.concatenate([np.full(R, v[0]), v]) for k, v in exts.items()}
+            res = _run(plan, ext, exts_r, np.concatenate([t[0] - ts * np.arange(R, 0, -1), t]), {})
+            return _trim(res, R)
+    elif start not in ("auto", "ramp"):
+        raise InputError(f"start must be 'auto' or 'ramp', got {start!r}", column="start")
     return _run(plan, cmds, exts, t, start_velocity)
+
+
+def _trim(res, R):
+    return SimResult(t=res.t[R:], y=res.y[R:], u=res.u[R:],
+                     axes={a: {k: v[R:] for k, v in d.items()} for a, d in res.axes.items()},
+                     output_names=res.output_names)
 
 
 def _commands(model, src, Ts, externals):

@@ -30,6 +30,7 @@ class Segment:
     vel: dict              # axis -> measured velocity (mm/s), drives friction
     pos: dict              # axis -> measured position (mm), drives position features
     Z: np.ndarray          # (p, N) measured outputs
+    R: int = 0             # run-up samples prepended to W, vel, pos (not fitted)
 
 
 @dataclass
@@ -107,32 +108,42 @@ class LSProblem:
 
     # ------------------------------------------------------------ data
     def _segment(self, tr):
+        """Inputs, velocities and outputs of one data range. A range that starts accelerating
+        gets the simulator's run-up from rest (``simulate.run_up``): R samples prepended to the
+        inputs and dropped from the LS, so regressors and free run start identically."""
+        from ..simulate import run_up
         s = self.s
         N = tr.n
-        W = np.zeros((self.m, N))
+        cmds = {ins.axis: np.asarray(tr.cmd(ins.axis), float) for ins in s.inputs if ins.kind == "command"}
+        R, ext = run_up(cmds, tr.Ts)
+        W = np.zeros((self.m, N + R))
         wref = np.zeros(self.m)
         dw = np.zeros(self.m)
         vel, pos = {}, {}
         for ax in s.axes:
-            x = np.asarray(tr.act(ax), float) if tr.has(ax, "act") else np.asarray(tr.cmd(ax), float)
-            pos[ax] = x
-            vel[ax] = (np.asarray(tr.get(ax, "vel"), float) if tr.has(ax, "vel")
-                       else measured_velocity(x, tr.Ts, s.ma_order, s.velocity))
+            x = np.asarray(tr.act(ax), float) if tr.has(ax, "act") else cmds[ax]
+            v = (np.asarray(tr.get(ax, "vel"), float) if tr.has(ax, "vel")
+                 else measured_velocity(x, tr.Ts, s.ma_order, s.velocity))
+            pre = ext[ax][:R]
+            vpre = np.diff(ext[ax][: R + 1]) / tr.Ts if R else np.zeros(0)
+            pos[ax] = np.concatenate([pre - cmds[ax][0] + x[0], x])
+            vel[ax] = np.concatenate([vpre, v])
         for i, ins in enumerate(s.inputs):
             if ins.kind == "command":
-                c = np.asarray(tr.cmd(ins.axis), float)
+                c = ext[ins.axis]
                 if np.ptp(c) <= 0:
                     raise InputError(f"the commanded position of axis '{ins.axis}' does not move in this "
                                      f"range: nothing to identify", source=tr.source, column=ins.name)
-                wref[i] = c[0]
-                W[i] = c - c[0]
-                dw[i] = W[i, 1] - W[i, 0]
+                wref[i] = cmds[ins.axis][0]
+                W[i] = c - wref[i]
+                dw[i] = 0.0 if R else W[i, 1] - W[i, 0]
             elif ins.kind == "external":
-                W[i] = np.asarray(tr.extra(ins.channel), float)
+                e = np.asarray(tr.extra(ins.channel), float)
+                W[i] = np.concatenate([np.full(R, e[0]), e])
         Z = np.zeros((self.p, N))
         for j, o in enumerate(s.outputs):
             Z[j] = _measured_output(tr, o)
-        return Segment(W=W, wref=wref, dw=dw, vel=vel, pos=pos, Z=Z)
+        return Segment(W=W, wref=wref, dw=dw, vel=vel, pos=pos, Z=Z, R=R)
 
     def fill_nonlinear_inputs(self, sg, v_tilde):
         """Friction and feature rows of the inputs for the given v_tilde (per axis)."""
@@ -155,8 +166,8 @@ class LSProblem:
         for sg in self.segments:
             W = self.fill_nonlinear_inputs(sg, v_tilde)
             R = rg.allpole_filter(den, W, W[:, 0], sg.dw)
-            Phi = rg.regressors(R, Fu, self.n)               # (m, N, len(used_l))
-            Mt = np.empty((len(self.used), W.shape[1]))
+            Phi = rg.regressors(R, Fu, self.n)[:, sg.R:]     # (m, N, len(used_l)), run-up dropped
+            Mt = np.empty((len(self.used), Phi.shape[1]))
             for k, (i, l) in enumerate(self.used):
                 Mt[k] = Phi[i, :, lpos[l]]
                 if l == self.n and sg.wref[i] != 0.0:
