@@ -236,6 +236,8 @@ class MachineConfig:
     Ts : float, s
     couplings : list[Coupling]
     n_sub : int   sub-steps per sample used where the friction / backlash is non-smooth
+    adaptive : bool   take whole samples where that is exact (sliding, stuck); False: every
+                  sample with a nonlinear force is split into n_sub sub-steps
     name : str
     """
 
@@ -243,6 +245,7 @@ class MachineConfig:
     Ts: float = 1e-3
     couplings: list = field(default_factory=list)
     n_sub: int = 8
+    adaptive: bool = True
     name: str = "virtual"
 
     def axis(self, name) -> AxisConfig:
@@ -278,6 +281,7 @@ class MachineConfig:
 
     def to_dict(self) -> dict:
         return {"name": self.name, "Ts": self.Ts, "n_sub": int(self.n_sub),
+                "adaptive": bool(self.adaptive),
                 "axes": [_jsonable(asdict(a)) for a in self.axes],
                 "couplings": [asdict(c) for c in self.couplings]}
 
@@ -488,6 +492,28 @@ def _continuous_closed_loop(cfg: MachineConfig, plant: Plant):
     return A, B0, B1, B2
 
 
+def _structural_keep(A, B, c):
+    """States structurally reachable from the inputs B and observable at the output row c.
+
+    Removes exactly the states that cannot take part in the transfer function (e.g. the other
+    axes of an uncoupled machine), so the num/den come out without cancelled pole-zero pairs.
+    """
+    G = A != 0
+    reach = np.any(B != 0, axis=1)
+    while True:
+        new = reach | np.any(G[:, reach], axis=1)
+        if (new == reach).all():
+            break
+        reach = new
+    obs = c != 0
+    while True:
+        new = obs | np.any(G[obs, :], axis=0)
+        if (new == obs).all():
+            break
+        obs = new
+    return np.flatnonzero(reach & obs)
+
+
 def _polyadd(a, b):
     n = max(len(a), len(b))
     return np.pad(a, (n - len(a), 0)) + np.pad(b, (n - len(b), 0))
@@ -610,7 +636,10 @@ def linear_truth(cfg: MachineConfig) -> dict:
     loop_delay = any(a.delay for a in cfg.axes)
 
     def G_cont(s, C, j, i, rec_delay):
-        """e_j / r_i at complex points s (continuous controller; delays as e^{-s tau})."""
+        """e_j / r_i at complex points s (continuous controller; delays as e^{-s tau}).
+
+        ``rec_delay`` (samples) delays the position before it is subtracted: the recorded
+        motor position is the measurement, delayed in the loop and again by the recording."""
         out = np.empty(s.size, dtype=complex)
         dij = 1.0 if i == j else 0.0
         for k, sk in enumerate(s):
@@ -634,9 +663,15 @@ def linear_truth(cfg: MachineConfig) -> dict:
                 continue
             cont[key][aj.name] = {}
             for i, ai in enumerate(cfg.axes):
+                Bin = np.column_stack((B0[:, i], B1[:, i], B2[:, i]))
+                keep = _structural_keep(Acl, Bin, C[j])
+                if keep.size == 0:  # no path from this command to this output
+                    cont[key][aj.name][ai.name] = {"num": [1.0 if i == j else 0.0], "den": [1.0]}
+                    continue
+                Ak = Acl[np.ix_(keep, keep)]
                 nums = []
                 for Bk in (B0, B1, B2):
-                    num, den = signal.ss2tf(Acl, Bk[:, i:i + 1], C[j:j + 1], np.zeros((1, 1)))
+                    num, den = signal.ss2tf(Ak, Bk[keep, i:i + 1], C[j:j + 1, keep], np.zeros((1, 1)))
                     nums.append(np.atleast_1d(np.squeeze(num)))
                 num = _polyadd(_polyadd(nums[0], np.r_[nums[1], 0.0]), np.r_[nums[2], 0.0, 0.0])
                 num_e = _polyadd((den if i == j else np.zeros(1)), -num)
@@ -645,7 +680,7 @@ def linear_truth(cfg: MachineConfig) -> dict:
         if aj.two_mass:
             cont["K_tool"][aj.name] = {}
         for i, ai in enumerate(cfg.axes):
-            c = taylor_coefficients(lambda s: G_cont(s, Cx, j, i, aj.record_delay), rho)
+            c = taylor_coefficients(lambda s: G_cont(s, Cx, j, i, aj.record_delay + aj.delay), rho)
             cont["K"][aj.name][ai.name] = {"K_vel": c[1], "K_acc": c[2], "K_jerk": c[3], "G0": c[0]}
             if aj.two_mass:
                 c = taylor_coefficients(lambda s: G_cont(s, Ct, j, i, 0), rho)

@@ -16,9 +16,10 @@ The nonlinear forces enter as extra inputs held over a (sub-)step:
 * backlash of a two-mass axis is a dead zone of the spring: the plant keeps the full spring and
   a correction force k clip(x_m - x_t, -b/2, b/2) is held per sub-step.
 
-A full Ts step is used while every friction axis slides in one direction with |v| above the
-Stribeck band (then the held Coulomb force is exact) and no backlash gap is open; otherwise the
-sample is redone in n_sub sub-steps. With all nonlinear effects off, the simulation *is* the
+A full Ts step is used while every friction axis either slides in one direction with |v| above
+the Stribeck band (then the held Coulomb force is exact) or stays stuck for the whole sample, and
+no backlash gap is open; otherwise the sample is redone in n_sub sub-steps (the counts are in
+``meta["truth"]["steps"]``). With all nonlinear effects off, the simulation *is* the
 discrete closed loop of :func:`fdid_fmi.virtual.drive.sampled_closed_loop` (to rounding).
 
 Controller (per axis, at t_k = k Ts): y_k = Q(x_{k-d} + noise) (delay d, quantisation Q),
@@ -130,6 +131,9 @@ def simulate_machine(cfg: MachineConfig, commands, seed=0, truth=True, source=No
     vs = [a.stribeck_velocity for a in axes]
     v_safe = [3.0 * a.stribeck_velocity if a.stribeck > 0 else 0.0 for a in axes]
     beta_h = [Gwh[fric_v[i], fric_dof[i]] for i in range(na)]
+    beta_T = [GwT[fric_v[i], fric_dof[i]] for i in range(na)]
+    stuck = [True] * na  # at rest at the start
+    n_full = n_split = 0
     gcol_h = [Gwh[:, fric_dof[i]].copy() for i in range(na)]
     gcol_T = [GwT[:, fric_dof[i]].copy() for i in range(na)]
     off_axes = [i for i, a in enumerate(axes) if a.force_offset]
@@ -229,20 +233,31 @@ def simulate_machine(cfg: MachineConfig, commands, seed=0, truth=True, source=No
             continue
         w = explicit_w(z, Ts)
         zf = PhiT @ z + GuT @ u + GwT @ w
-        ok = all(abs(z[plant.pos(mi[i])] - z[plant.pos(ti[i])]) >= 0.5 * axes[i].backlash
-                 for i in bl2_axes)
+        ok = cfg.adaptive and all(abs(z[plant.pos(mi[i])] - z[plant.pos(ti[i])]) >= 0.5 * axes[i].backlash
+                                  for i in bl2_axes)
         fvals = {}
         if ok:
             for i in fric_axes:
                 v0 = z[fric_v[i]]
-                if abs(v0) <= v_safe[i]:
+                if abs(v0) > v_safe[i]:
+                    f = -fmag(i, abs(v0), 1) if v0 > 0 else fmag(i, abs(v0), -1)
+                elif stuck[i]:
+                    # stays stuck for the whole sample if the breakaway force holds it
+                    vfree = zf[fric_v[i]]
+                    lim = fmag(i, 0.0, 1) if vfree > 0 else fmag(i, 0.0, -1)
+                    if abs(vfree) > beta_T[i] * lim:
+                        ok = False
+                        break
+                    f = -vfree / beta_T[i]
+                else:
                     ok = False
                     break
-                f = -fmag(i, abs(v0), 1) if v0 > 0 else fmag(i, abs(v0), -1)
                 fvals[i] = f
                 zf += gcol_T[i] * f
             if ok:
                 for i in fric_axes:
+                    if stuck[i] and abs(z[fric_v[i]]) <= v_safe[i]:
+                        continue
                     v0, v1 = z[fric_v[i]], zf[fric_v[i]]
                     if v0 * v1 <= 0 or abs(v1) <= v_safe[i]:
                         ok = False
@@ -257,7 +272,9 @@ def simulate_machine(cfg: MachineConfig, commands, seed=0, truth=True, source=No
                 Wrec[k, fric_dof[i]] += fvals[i]
                 Ff[k, i] = fvals[i]
             z = zf
+            n_full += 1
             continue
+        n_split += 1
         cu = Guh @ u
         for s in range(n_sub):
             w = explicit_w(z, h)
@@ -272,15 +289,22 @@ def simulate_machine(cfg: MachineConfig, commands, seed=0, truth=True, source=No
                 fn = fmag(i, vstart, -1)
                 if vfree > b * fp:
                     f = -fp
+                    stuck[i] = False
                 elif vfree < -b * fn:
                     f = fn
+                    stuck[i] = False
                 else:
                     f = -vfree / b  # stick: v = 0 at the end of the sub-step
+                    stuck[i] = True
                 zf += gcol_h[i] * f
                 if s == 0:
                     Wrec[k, fric_dof[i]] += f
                     Ff[k, i] = f
             z = zf
+
+    if N > 1:
+        Ff[N - 1] = Ff[N - 2]
+        Wrec[N - 1] = Wrec[N - 2]
 
     # ------------------------------------------------------------------ outputs
     Aq, Bqu, Bqw = plant.force_rows()
@@ -310,6 +334,7 @@ def simulate_machine(cfg: MachineConfig, commands, seed=0, truth=True, source=No
                       f"{a.name}_force": "N", f"{a.name}_friction": "N"})
     meta_truth = {"machine": cfg.to_dict(), "effects": {a.name: a.effects() for a in axes},
                   "seed": seed,
+                  "steps": {"full": n_full, "split_into_sub_steps": n_split},
                   "integration": (f"exact ZOH of the linear plant over Ts={Ts:g} s; {n_sub} sub-steps "
                                   "per sample near friction sticking/reversal or backlash gap; implicit "
                                   "Coulomb/Stribeck friction, mid-step periodic force"),

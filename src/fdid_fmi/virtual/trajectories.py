@@ -307,7 +307,8 @@ def linear_moves(n_moves=20, d_min=1.0, d_max=40.0, stroke=100.0, v=100.0, acc=2
 
     Returns
     -------
-    Trajectory (all axes start at 0 mm)
+    Trajectory (all axes start at 0 mm); ``info["moves"]`` lists each move's axis, start and
+    end time (s), target (mm) and feed (mm/s).
     """
     Ts = _positive("Ts", Ts)
     if int(n_moves) != n_moves or n_moves < 1:
@@ -330,6 +331,7 @@ def linear_moves(n_moves=20, d_min=1.0, d_max=40.0, stroke=100.0, v=100.0, acc=2
     tl.dwell(d0)
     direction = rng.choice([-1.0, 1.0], size=len(axes))
     half = stroke / 2
+    moves = []
     for m in range(int(n_moves)):
         ax = int(rng.integers(len(axes)))
         direction[ax] = -direction[ax]
@@ -343,14 +345,17 @@ def linear_moves(n_moves=20, d_min=1.0, d_max=40.0, stroke=100.0, v=100.0, acc=2
         feed = v * rng.uniform(lo, hi)
         target = tl.pos.copy()
         target[ax] = cur + direction[ax] * dist
+        t_start = tl.t
         tl.line(target, feed, acc, jerk)
+        moves.append({"axis": axes[ax], "t_start": t_start, "t_end": tl.t,
+                      "target": float(target[ax]), "feed": float(feed)})
         if m < n_moves - 1:
             tl.dwell(rng.uniform(p_lo, p_hi))
     tl.dwell(d1)
     t, p = tl.sample(Ts)
     return Trajectory(t, {a: p[:, i] for i, a in enumerate(axes)}, Ts,
                       dict(kind="linear_moves", v=v, acc=acc, jerk=jerk, seed=seed, n_moves=n_moves,
-                           d_min=d_min, d_max=d_max, stroke=stroke))
+                           d_min=d_min, d_max=d_max, stroke=stroke, moves=moves))
 
 
 def sequence(points, v=100.0, acc=2000.0, jerk=1e5, Ts=1e-3, dwell=0.3, corner_dwell=0.0,
