@@ -1,0 +1,364 @@
+/* fdid_core.c -- the simulation semantics of fdid_fmi.simulate, in C99.
+ *
+ * Written once for every model; the model enters only through the FdidModel constant data
+ * generated in model_data.c. Each routine mirrors a block of fdid_fmi/simulate.py
+ * (same operations in the same order, so that FMU and reference agree to rounding).
+ */
+#include "model_data.h"
+#include "fdid_model.h"
+
+#if FDID_USE_LIBM
+#include <math.h>
+#endif
+
+#define FDID_TOL 1e-12
+#define FDID_PI 3.141592653589793
+
+int fdid_is_finite(double x) {
+    /* x - x is 0 for finite x and NaN for inf / NaN (IEEE 754; no -ffast-math) */
+    volatile double d = x - x;
+    return d == 0.0;
+}
+
+static double fdid_sat(double x) {
+    if (x > 1.0) return 1.0;
+    if (x < -1.0) return -1.0;
+    return x;
+}
+
+static double fdid_abs(double x) { return x < 0.0 ? -x : x; }
+
+/* ------------------------------------------------------------------ layout */
+size_t fdid_buffer_size(const FdidModel *M) {
+    size_t n = (size_t)M->n, m = (size_t)M->m, p = (size_t)M->p, a = (size_t)M->n_axes;
+    /* xi, x_prev, v_prev, cmd, ext, uref, yoff, u, y, vel, level, vtilde, on, v0, work_n, work_m */
+    return n + a + a + a + m + m + p + m + p + a + a + a + a + a + n + m;
+}
+
+void fdid_state_bind(FdidState *S, const FdidModel *M, double *buf) {
+    size_t n = (size_t)M->n, m = (size_t)M->m, p = (size_t)M->p, a = (size_t)M->n_axes;
+    double *q = buf;
+    S->M = M;
+    S->buf = buf;
+    S->nbuf = fdid_buffer_size(M);
+    S->xi = q; q += n;
+    S->x_prev = q; q += a;
+    S->v_prev = q; q += a;
+    S->cmd = q; q += a;
+    S->ext = q; q += m;
+    S->uref = q; q += m;
+    S->yoff = q; q += p;
+    S->u = q; q += m;
+    S->y = q; q += p;
+    S->vel = q; q += a;
+    S->level = q; q += a;
+    S->vtilde = q; q += a;
+    S->on = q; q += a;
+    S->v0 = q; q += a;
+    S->work_n = q; q += n;
+    S->work_m = q;
+}
+
+/* start values of inputs and parameters; the state is marked for initialisation */
+void fdid_state_defaults(FdidState *S) {
+    const FdidModel *M = S->M;
+    size_t i;
+    int a;
+    for (i = 0; i < S->nbuf; i++) S->buf[i] = 0.0;
+    for (a = 0; a < M->n_axes; a++) {
+        S->level[a] = M->axis_level0[a];
+        S->vtilde[a] = M->axis_vtilde0[a];
+        S->on[a] = 1.0;
+        S->v0[a] = 0.0;
+    }
+    S->f.steps = 0;
+    S->f.init_dirty = 1;
+    S->f.out_dirty = 1;
+    S->f.started = 0;
+}
+
+/* -------------------------------------------------------------- building blocks */
+/* out = X v (X row-major r x c), numpy's X @ v */
+static void matvec(const double *X, int r, int c, const double *v, double *out) {
+    int i, j;
+    for (i = 0; i < r; i++) {
+        double s = 0.0;
+        const double *row = X + (size_t)i * (size_t)c;
+        for (j = 0; j < c; j++) s += row[j] * v[j];
+        out[i] = s;
+    }
+}
+
+/* effective friction level / v_tilde of friction input j (simulate._Plan) */
+static double fric_level(const FdidState *S, int j) {
+    int a = S->M->inputs[S->M->fric_input[j]].axis;
+    return S->on[a] != 0.0 ? S->level[a] : 0.0;
+}
+
+static double fric_vtilde(const FdidState *S, int j) {
+    return S->vtilde[S->M->inputs[S->M->fric_input[j]].axis];
+}
+
+/* simulate.feature_value */
+static double feature_value(const FdidInput *in, double v_prev, double x_cmd, double x_prev) {
+    double s;
+    switch (in->function) {
+#if FDID_USE_LIBM
+    case FDID_F_SIN_POSITION:
+    case FDID_F_COS_POSITION: {
+        double x = in->source_position ? x_prev : x_cmd;
+        double arg = 2.0 * FDID_PI * x / in->period_mm;
+        return in->function == FDID_F_SIN_POSITION ? sin(arg) : cos(arg);
+    }
+#endif
+    default:
+        break;
+    }
+    s = fdid_sat(v_prev / in->v_tilde);
+    if (in->function == FDID_F_SAT) return s;
+    if (in->function == FDID_F_ABS_SAT) return fdid_abs(s);
+#if FDID_USE_LIBM
+    if (in->function == FDID_F_STRIBECK) {
+        double q = v_prev / in->v_s;
+        return s * exp(-(q * q));
+    }
+#endif
+    (void)x_cmd;
+    (void)x_prev;
+    return 0.0; /* unreachable: the exporter sets FDID_USE_LIBM for these functions */
+}
+
+/* LU solve with partial pivoting (LAPACK dgesv); returns 0 when singular */
+static int lu_solve(double *Mx, double *rhs, int k) {
+    int c, r, j;
+    for (c = 0; c < k; c++) {
+        int piv = c;
+        double best = fdid_abs(Mx[c * k + c]);
+        for (r = c + 1; r < k; r++) {
+            double v = fdid_abs(Mx[r * k + c]);
+            if (v > best) { best = v; piv = r; }
+        }
+        if (Mx[piv * k + c] == 0.0) return 0;
+        if (piv != c) {
+            double t;
+            for (j = 0; j < k; j++) { t = Mx[c * k + j]; Mx[c * k + j] = Mx[piv * k + j]; Mx[piv * k + j] = t; }
+            t = rhs[c]; rhs[c] = rhs[piv]; rhs[piv] = t;
+        }
+        for (r = c + 1; r < k; r++) {
+            double f = Mx[r * k + c] / Mx[c * k + c];
+            for (j = c + 1; j < k; j++) Mx[r * k + j] -= f * Mx[c * k + j];
+            rhs[r] -= f * rhs[c];
+        }
+    }
+    for (r = k - 1; r >= 0; r--) {
+        double s = rhs[r];
+        for (j = r + 1; j < k; j++) s -= Mx[r * k + j] * rhs[j];
+        rhs[r] = s / Mx[r * k + r];
+    }
+    return 1;
+}
+
+/* simulate.solve_friction: d_i = L_i sat((alpha_i + sum_j beta_ij d_j) / vt_i), exactly */
+static void solve_friction(int m, const double *alpha, const double *beta, const double *level,
+                           const double *vt, double *d) {
+    int br[FDID_MAX_FRICTION];
+    int nb = 1, b, i, j;
+    if (m == 1) {
+        double L = level[0], v = vt[0], a = alpha[0], bb = beta[0], den;
+        if (L == 0.0) { d[0] = 0.0; return; }
+        den = v - L * bb;
+        if (den > 0) {
+            double x = L * a / den;
+            if (fdid_abs(x) <= L) { d[0] = x; return; }
+        }
+        if (1.0 * (a + bb * 1.0 * L) >= v * (1 - FDID_TOL)) { d[0] = L; return; }
+        if (-1.0 * (a + bb * -1.0 * L) >= v * (1 - FDID_TOL)) { d[0] = -L; return; }
+        d[0] = L * fdid_sat(a / v);
+        return;
+    }
+    for (i = 0; i < m; i++) nb *= 3;
+    for (b = 0; b < nb; b++) {
+        /* itertools.product((0, 1, -1), repeat=m): the last input varies fastest */
+        int code = b, ok = 1, nlin = 0, lin[FDID_MAX_FRICTION], nonlin[FDID_MAX_FRICTION], nnl = 0;
+        double z;
+        for (i = m - 1; i >= 0; i--) {
+            int digit = code % 3;
+            code /= 3;
+            br[i] = digit == 0 ? 0 : (digit == 1 ? 1 : -1);
+        }
+        for (i = 0; i < m; i++) {
+            d[i] = 0.0;
+            if (br[i] == 0) lin[nlin++] = i;
+            else { nonlin[nnl++] = i; d[i] = br[i] * level[i]; }
+        }
+        if (nlin > 0) {
+            double Mx[FDID_MAX_FRICTION * FDID_MAX_FRICTION], rhs[FDID_MAX_FRICTION], g[FDID_MAX_FRICTION];
+            int r, c;
+            for (r = 0; r < nlin; r++) g[r] = level[lin[r]] / vt[lin[r]];
+            for (r = 0; r < nlin; r++) {
+                double s = 0.0;
+                for (c = 0; c < nlin; c++)
+                    Mx[r * nlin + c] = (r == c ? 1.0 : 0.0) - g[r] * beta[lin[r] * m + lin[c]];
+                for (c = 0; c < nnl; c++) s += beta[lin[r] * m + nonlin[c]] * d[nonlin[c]];
+                rhs[r] = g[r] * (alpha[lin[r]] + s);
+            }
+            if (!lu_solve(Mx, rhs, nlin)) continue;
+            for (r = 0; r < nlin; r++) d[lin[r]] = rhs[r];
+        }
+        for (i = 0; i < m && ok; i++) {
+            double s = 0.0;
+            if (level[i] == 0.0) continue;
+            for (j = 0; j < m; j++) s += beta[i * m + j] * d[j];
+            z = (alpha[i] + s) / vt[i];
+            if (br[i] == 0 && fdid_abs(z) > 1 + FDID_TOL) ok = 0;
+            else if (br[i] == 1 && z < 1 - FDID_TOL) ok = 0;
+            else if (br[i] == -1 && z > -1 + FDID_TOL) ok = 0;
+        }
+        if (ok) return;
+    }
+    for (i = 0; i < m; i++) d[i] = level[i] * fdid_sat(alpha[i] / vt[i]);
+}
+
+/* ------------------------------------------------------------ initial state */
+/* steady ramp at the start velocity v0 from the current inputs (simulate._run, first block) */
+void fdid_initialize(FdidState *S) {
+    const FdidModel *M = S->M;
+    int n = M->n, m = M->m, p = M->p, i, a, j;
+    double *u0 = S->u, *du = S->work_m, *s2du = S->work_n;
+    for (i = 0; i < m; i++) S->uref[i] = 0.0;
+    for (a = 0; a < M->n_axes; a++) S->uref[M->axis_cmd_input[a]] = S->cmd[a];
+    matvec(M->G1, p, m, S->uref, S->yoff);
+    for (i = 0; i < m; i++) { u0[i] = 0.0; du[i] = 0.0; }
+    for (a = 0; a < M->n_axes; a++) du[M->axis_cmd_input[a]] = S->v0[a] * M->Ts;
+    for (j = 0; j < M->n_fric; j++) {
+        int in = M->fric_input[j];
+        u0[in] = fric_level(S, j) * fdid_sat(S->v0[M->inputs[in].axis] / fric_vtilde(S, j));
+    }
+    for (i = 0; i < m; i++) {
+        const FdidInput *in = &M->inputs[i];
+        if (in->kind == FDID_IN_EXTERNAL) u0[i] = S->ext[i];
+        else if (in->kind == FDID_IN_FEATURE)
+            u0[i] = feature_value(in, S->v0[in->axis], S->cmd[in->axis], S->cmd[in->axis]);
+    }
+    /* xi = S u0 - S2 du */
+    matvec(M->S, n, m, u0, S->xi);
+    matvec(M->S2, n, m, du, s2du);
+    for (i = 0; i < n; i++) S->xi[i] = S->xi[i] - s2du[i];
+    /* y0 = C xi + D u0 + yoff; x[-1] = x[0] - v0 Ts, v[-1] = v0 */
+    for (a = 0; a < M->n_axes; a++) {
+        int o = M->axis_pos_output[a];
+        double c = 0.0, dd = 0.0;
+        for (j = 0; j < n; j++) c += M->C[(size_t)o * (size_t)n + (size_t)j] * S->xi[j];
+        for (j = 0; j < m; j++) dd += M->D[(size_t)o * (size_t)m + (size_t)j] * u0[j];
+        S->x_prev[a] = ((c + dd) + S->yoff[o]) - S->v0[a] * M->Ts;
+        S->v_prev[a] = S->v0[a];
+    }
+    S->f.steps = 0;
+    S->f.init_dirty = 0;
+    S->f.out_dirty = 1;
+}
+
+/* ------------------------------------------------------------------ one step */
+/* outputs at the current time from the current inputs (simulate._run, loop body, 1.-3.) */
+void fdid_outputs(FdidState *S) {
+    const FdidModel *M = S->M;
+    int n = M->n, m = M->m, p = M->p, nf = M->n_fric, i, j, a, o;
+    double *u = S->u, *y = S->y;
+    if (S->f.init_dirty) fdid_initialize(S);
+    if (!S->f.out_dirty) return;
+    for (a = 0; a < M->n_axes; a++) {
+        int ci = M->axis_cmd_input[a];
+        u[ci] = S->cmd[a] - S->uref[ci];
+    }
+    for (i = 0; i < m; i++) {
+        const FdidInput *in = &M->inputs[i];
+        if (in->kind == FDID_IN_EXTERNAL) u[i] = S->ext[i];
+        else if (in->kind == FDID_IN_FEATURE)
+            u[i] = feature_value(in, S->v_prev[in->axis], S->cmd[in->axis], S->x_prev[in->axis]);
+        else if (in->kind == FDID_IN_FRICTION) u[i] = 0.0;
+    }
+    /* y = C xi + D u + yoff */
+    for (o = 0; o < p; o++) {
+        double c = 0.0, dd = 0.0;
+        const double *cr = M->C + (size_t)o * (size_t)n, *dr = M->D + (size_t)o * (size_t)m;
+        for (j = 0; j < n; j++) c += cr[j] * S->xi[j];
+        for (j = 0; j < m; j++) dd += dr[j] * u[j];
+        y[o] = (c + dd) + S->yoff[o];
+    }
+    if (nf > 0) {
+        double alpha[FDID_MAX_FRICTION], beta[FDID_MAX_FRICTION * FDID_MAX_FRICTION];
+        double lev[FDID_MAX_FRICTION], vt[FDID_MAX_FRICTION], d[FDID_MAX_FRICTION];
+        for (j = 0; j < nf; j++) {
+            int ov = M->fric_vel_output[j], jj;
+            int ax = M->inputs[M->fric_input[j]].axis;
+            alpha[j] = M->fric_vel_diff[j] ? (y[ov] - S->x_prev[ax]) / M->Ts : y[ov];
+            for (jj = 0; jj < nf; jj++) {
+                double dv = M->D[(size_t)ov * (size_t)m + (size_t)M->fric_input[jj]];
+                beta[j * nf + jj] = M->fric_vel_diff[j] ? dv / M->Ts : dv;
+            }
+            lev[j] = fric_level(S, j);
+            vt[j] = fric_vtilde(S, j);
+        }
+        solve_friction(nf, alpha, beta, lev, vt, d);
+        for (j = 0; j < nf; j++) u[M->fric_input[j]] = d[j];
+        for (o = 0; o < p; o++) {
+            double s = 0.0;
+            for (j = 0; j < nf; j++) s += M->D[(size_t)o * (size_t)m + (size_t)M->fric_input[j]] * d[j];
+            y[o] = y[o] + s;
+        }
+    }
+    for (a = 0; a < M->n_axes; a++) {
+        int vo = M->axis_vel_output[a], po = M->axis_pos_output[a];
+        S->vel[a] = vo >= 0 ? y[vo] : (y[po] - S->x_prev[a]) / M->Ts;
+    }
+    S->f.out_dirty = 0;
+}
+
+/* one internal step: outputs of the current time, then memory and state update */
+void fdid_advance(FdidState *S) {
+    const FdidModel *M = S->M;
+    int n = M->n, m = M->m, i, j, a;
+    fdid_outputs(S);
+    for (a = 0; a < M->n_axes; a++) {
+        S->v_prev[a] = S->vel[a];
+        S->x_prev[a] = S->y[M->axis_pos_output[a]];
+    }
+    /* xi <- A xi + B u (new state in the scratch vector first: every row needs the old xi) */
+    for (i = 0; i < n; i++) {
+        double s1 = 0.0, s2 = 0.0;
+        const double *ar = M->A + (size_t)i * (size_t)n, *br = M->B + (size_t)i * (size_t)m;
+        for (j = 0; j < n; j++) s1 += ar[j] * S->xi[j];
+        for (j = 0; j < m; j++) s2 += br[j] * S->u[j];
+        S->work_n[i] = s1 + s2;
+    }
+    for (i = 0; i < n; i++) S->xi[i] = S->work_n[i];
+    S->f.steps += 1;
+    S->f.out_dirty = 1;
+}
+
+/* value of a Real / Boolean variable (outputs are brought up to date first) */
+double fdid_var_value(FdidState *S, const FdidVar *v) {
+    const FdidModel *M = S->M;
+    int a = v->index;
+    switch (v->role) {
+    case FDID_V_CMD: return S->cmd[a];
+    case FDID_V_EXT: return S->ext[a];
+    case FDID_P_LEVEL: return S->level[a];
+    case FDID_P_VTILDE: return S->vtilde[a];
+    case FDID_P_ON: return S->on[a];
+    case FDID_P_V0: return S->v0[a];
+    default: break;
+    }
+    fdid_outputs(S);
+    switch (v->role) {
+    case FDID_V_POS: return S->y[M->axis_pos_output[a]];
+    case FDID_V_ERR:
+        if (M->axis_err_output[a] >= 0) return S->y[M->axis_err_output[a]];
+        return S->cmd[a] - S->y[M->axis_pos_output[a]];
+    case FDID_V_VEL: return S->vel[a];
+    case FDID_V_TOOL: return S->y[M->axis_tool_output[a]];
+    case FDID_V_Y: return S->y[a];
+    case FDID_V_U: return S->u[a];
+    default: return 0.0;
+    }
+}

@@ -1,0 +1,80 @@
+"""Compile the FMU's C sources into platform binaries (gcc; mingw-w64 for win64).
+
+Flags: ``-O2 -std=c99 -Wall -Wextra -Werror -fPIC -shared -fvisibility=hidden``; only the
+fmi2/fmi3 functions are exported (``FMI2_Export``/``FMI3_Export`` in the standard headers).
+``-lm`` is added only when the model needs sin/cos/exp (feature inputs); models without
+them give a binary with no libm dependency. The win64 DLL is linked with ``-static-libgcc``
+so it needs nothing beyond the Windows C runtime (msvcrt).
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import FdidError, InputError
+
+
+class BuildError(FdidError):
+    """The C compiler failed (the message carries its output)."""
+
+
+@dataclass(frozen=True)
+class Platform:
+    name: str          # fdid name: linux64 / win64
+    fmi2_dir: str      # binaries/<dir> for FMI 2.0
+    fmi3_dir: str      # binaries/<dir> for FMI 3.0
+    compiler: str
+    suffix: str
+    extra: tuple
+
+
+PLATFORMS = {
+    "linux64": Platform("linux64", "linux64", "x86_64-linux", os.environ.get("CC", "gcc"), ".so",
+                        ("-fPIC", "-fvisibility=hidden")),
+    "win64": Platform("win64", "win64", "x86_64-windows", "x86_64-w64-mingw32-gcc", ".dll",
+                      ("-static-libgcc",)),
+}
+
+CFLAGS = ("-O2", "-std=c99", "-Wall", "-Wextra", "-Werror")
+
+
+def compiler_available(platform):
+    """True when the compiler of ``platform`` (``linux64``/``win64``) is on PATH."""
+    return shutil.which(_platform(platform).compiler) is not None
+
+
+def _platform(name):
+    if name not in PLATFORMS:
+        raise InputError(f"unknown platform '{name}'; expected one of {sorted(PLATFORMS)}",
+                         column="platforms")
+    return PLATFORMS[name]
+
+
+def compile_binary(src_dir, sources, out_file, platform, uses_libm):
+    """Compile ``sources`` (in ``src_dir``) into the shared library ``out_file``.
+
+    Raises
+    ------
+    InputError   when the compiler of the platform is not installed
+    BuildError   when compilation fails (with the compiler's messages)
+    """
+    p = _platform(platform)
+    cc = shutil.which(p.compiler)
+    if cc is None:
+        hint = (" (Debian/Ubuntu: apt-get install gcc-mingw-w64-x86-64)" if platform == "win64"
+                else " (install gcc)")
+        raise InputError(f"the {platform} compiler '{p.compiler}' is not installed{hint}",
+                         column="platforms")
+    out_file = Path(out_file)
+    out_file.parent.mkdir(parents=True, exist_ok=True)
+    cmd = [cc, *CFLAGS, *p.extra, "-shared", "-I", str(src_dir),
+           *[str(Path(src_dir) / s) for s in sources], "-o", str(out_file)]
+    if uses_libm:
+        cmd.append("-lm")
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    if res.returncode != 0:
+        raise BuildError(f"{p.compiler} failed ({' '.join(cmd)}):\n{res.stdout}{res.stderr}")
+    return out_file

@@ -1,0 +1,186 @@
+"""Export a DriveModel as an FMI Co-Simulation FMU (C backend; pythonfmu as a prototype path).
+
+FMU layout (FMI 2.0)::
+
+    modelDescription.xml
+    binaries/linux64/<id>.so        (gcc)
+    binaries/win64/<id>.dll         (x86_64-w64-mingw32-gcc, when asked for)
+    sources/                        generic C (fdid_core.c, fmi2Functions.c, fdid_model.h),
+                                    generated model_data.{h,c}, the FMI headers
+    resources/model.json            the DriveModel (used by ``fdid validate`` as the reference)
+
+FMI 3.0 is the same with ``binaries/x86_64-linux``/``x86_64-windows``, ``fmi3Functions.c``
+and ``sources/buildDescription.xml``.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+import shutil
+import tempfile
+import zipfile
+from pathlib import Path
+
+from ..errors import InputError
+from ..model import DriveModel, QuasiStaticModel, load_model
+from .build import PLATFORMS, compile_binary
+from .codegen import model_data_c, model_data_h
+from .description import model_description_fmi2, model_description_fmi3
+from .layout import build_layout, check_exportable
+
+CORE_SOURCES = ("fdid_core.c",)
+HEADERS = ("fdid_model.h",)
+FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
+               3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")}
+PLUMBING = {2: "fmi2Functions.c", 3: "fmi3Functions.c"}
+
+
+def templates_dir():
+    """Directory of the C templates (``fmu_templates/`` of the source tree).
+
+    ``FDID_FMU_TEMPLATES`` overrides it (for installs without the source tree).
+    """
+    import os
+    env = os.environ.get("FDID_FMU_TEMPLATES")
+    cands = ([Path(env)] if env else []) + [
+        Path(__file__).resolve().parents[3] / "fmu_templates",
+        Path(__file__).resolve().parents[1] / "templates" / "fmu",
+    ]
+    for c in cands:
+        if (c / "fdid_core.c").is_file():
+            return c
+    raise InputError("the FMU C templates were not found (looked in "
+                     f"{', '.join(str(c) for c in cands)}); set FDID_FMU_TEMPLATES", column="templates")
+
+
+def model_identifier_for(path):
+    """A C identifier from the FMU file name (``my-model.fmu`` -> ``my_model``)."""
+    stem = Path(path).name
+    if stem.lower().endswith(".fmu"):
+        stem = stem[:-4]
+    ident = re.sub(r"[^A-Za-z0-9_]", "_", stem) or "fdid_model"
+    if not (ident[0].isalpha() or ident[0] == "_"):
+        ident = "m_" + ident
+    return ident
+
+
+def fmu_guid(model, fmi_version, model_identifier, backend="c"):
+    """GUID (FMI 2) / instantiation token (FMI 3): a hash of the model, the templates and options."""
+    h = hashlib.sha256()
+    h.update(json.dumps(model.to_dict(), sort_keys=True).encode())
+    h.update(f"|fmi{fmi_version}|{model_identifier}|{backend}|".encode())
+    if backend == "c":
+        tdir = templates_dir()
+        for f in (*CORE_SOURCES, *HEADERS, PLUMBING[fmi_version]):
+            h.update((tdir / f).read_bytes())
+    d = h.hexdigest()
+    return "{" + f"{d[:8]}-{d[8:12]}-{d[12:16]}-{d[16:20]}-{d[20:32]}" + "}"
+
+
+def export_fmu(model, path, fmi_version=2, platforms=("linux64",), backend="c",
+               model_identifier=None, description=None):
+    """Export ``model`` as a Co-Simulation FMU.
+
+    Parameters
+    ----------
+    model : DriveModel, or path of a model JSON file
+        Quasi-static models are refused (they have no state-space form).
+    path : str or Path
+        The ``.fmu`` file to write (its name gives the model identifier unless given).
+    fmi_version : 2 or 3
+    platforms : sequence of ``linux64`` / ``win64``
+        Binaries to compile (C backend). ``sources/`` is always shipped.
+    backend : ``c`` (default) or ``python`` (pythonfmu; needs Python + numpy in the importer)
+    model_identifier : str, optional
+    description : str, optional
+
+    Returns
+    -------
+    Path of the written FMU.
+    """
+    if isinstance(model, (str, Path)):
+        model = load_model(model)
+    if isinstance(model, QuasiStaticModel):
+        check_exportable(model)
+    if not isinstance(model, DriveModel):
+        raise InputError(f"expected a DriveModel, got {type(model).__name__}", column="model")
+    path = Path(path)
+    if path.suffix.lower() != ".fmu":
+        raise InputError("the output file must end in .fmu", source=str(path))
+    try:
+        fmi_version = int(fmi_version)
+    except (TypeError, ValueError):
+        raise InputError(f"FMI version must be 2 or 3, got {fmi_version!r}", column="fmi") from None
+    if fmi_version not in (2, 3):
+        raise InputError(f"FMI version must be 2 or 3, got {fmi_version}", column="fmi")
+    if isinstance(platforms, str):
+        platforms = [p.strip() for p in platforms.split(",") if p.strip()]
+    platforms = list(dict.fromkeys(platforms))
+    for p in platforms:
+        if p not in PLATFORMS:
+            raise InputError(f"unknown platform '{p}'; expected one of {sorted(PLATFORMS)}",
+                             column="platforms")
+    ident = model_identifier or model_identifier_for(path)
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", ident):
+        raise InputError(f"model identifier '{ident}' is not a C identifier", column="model_identifier")
+    if backend == "python":
+        if fmi_version != 2:
+            raise InputError("the python backend (pythonfmu) writes FMI 2.0 FMUs only", column="fmi")
+        from .python_backend import export_python_fmu
+        return export_python_fmu(model, path, model_identifier=ident, description=description)
+    if backend != "c":
+        raise InputError(f"backend must be 'c' or 'python', got {backend!r}", column="backend")
+    layout = build_layout(model)
+    guid = fmu_guid(model, fmi_version, ident)
+    tdir = templates_dir()
+    with tempfile.TemporaryDirectory(prefix="fdid_fmu_") as tmp:
+        root = Path(tmp) / "fmu"
+        src = root / "sources"
+        src.mkdir(parents=True)
+        plumbing = PLUMBING[fmi_version]
+        sources = [*CORE_SOURCES, plumbing, "model_data.c"]
+        for f in (*CORE_SOURCES, plumbing, *HEADERS):
+            shutil.copy(tdir / f, src / f)
+        for f in FMI_HEADERS[fmi_version]:
+            shutil.copy(tdir / "include" / f, src / f)
+        (src / "model_data.h").write_text(model_data_h(layout, guid, ident))
+        (src / "model_data.c").write_text(model_data_c(layout, guid, ident))
+        for plat in platforms:
+            p = PLATFORMS[plat]
+            bdir = p.fmi2_dir if fmi_version == 2 else p.fmi3_dir
+            compile_binary(src, sources, root / "binaries" / bdir / f"{ident}{p.suffix}", plat,
+                           layout.uses_libm)
+        if fmi_version == 2:
+            xml = model_description_fmi2(layout, guid, ident, description, source_files=sources)
+        else:
+            xml = model_description_fmi3(layout, guid, ident, description)
+            (src / "buildDescription.xml").write_text(_build_description(ident, sources, layout.uses_libm))
+        (root / "modelDescription.xml").write_text(xml)
+        res = root / "resources"
+        res.mkdir()
+        model.save(res / "model.json")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmpzip = path.with_name(path.name + ".part")
+        with zipfile.ZipFile(tmpzip, "w", zipfile.ZIP_DEFLATED) as zf:
+            for f in sorted(root.rglob("*")):
+                if f.is_file():
+                    zf.write(f, f.relative_to(root).as_posix())
+        tmpzip.replace(path)
+    return path
+
+
+def _build_description(ident, sources, uses_libm):
+    """FMI 3.0 sources/buildDescription.xml."""
+    files = "\n".join(f'      <SourceFile name="{s}"/>' for s in sources)
+    libs = '\n      <Library name="m"/>' if uses_libm else ""
+    return (
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        '<fmiBuildDescription fmiVersion="3.0">\n'
+        f'  <BuildConfiguration modelIdentifier="{ident}" description="C99; link -lm only if listed">\n'
+        '    <SourceFileSet language="C99">\n'
+        f"{files}\n"
+        "    </SourceFileSet>"
+        f"{libs}\n"
+        "  </BuildConfiguration>\n"
+        "</fmiBuildDescription>\n")

@@ -1,0 +1,330 @@
+"""Validate an exported FMU: fmpy's checks, the reference simulator, and the measured trace.
+
+``validate_fmu(fmu_path, trace, model=None)`` runs three comparisons:
+
+1. ``fmpy.validation.validate_fmu``: modelDescription.xml schema, names, ModelStructure...
+   (any problem it reports is listed in ``problems``);
+2. the FMU driven through fmpy's ``FMU2Slave``/``FMU3Slave`` with the measured commanded
+   positions against :func:`fdid_fmi.simulate.simulate` on the same trace (the reference,
+   start velocity = commanded velocity of the first two samples, passed to the FMU's
+   ``<axis>_v0``): largest absolute difference of every position / error / velocity / tool
+   output (target <= 1e-9 mm);
+3. the FMU's prediction against the measurement: RMS and maximum of the tracking-error
+   discrepancy (predicted e - measured e) per axis in µm, and for two or more axes the
+   contour-error discrepancy of the first two axes.
+
+Timing: at step k the input of sample k is set *before* the outputs of sample k are read
+(the model has direct feed-through), then ``doStep(t_k, Ts)``. fmpy's ``simulate_fmu``
+records outputs after ``doStep`` and before the next input is set, so its row k+1 holds
+what this driver reads at k with the input of k held one more step.
+"""
+from __future__ import annotations
+
+import json
+import shutil
+import tempfile
+import zipfile
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..model import DriveModel, load_model
+from ..trace import Trace
+
+
+@dataclass
+class ValidationResult:
+    """Outcome of :func:`validate_fmu`.
+
+    Attributes
+    ----------
+    fmu : str                       FMU file
+    problems : list[str]            fmpy validation problems and failed checks (empty = none)
+    max_abs_diff_reference_mm : float
+        max |FMU - reference simulator| over all position/error/tool outputs (mm)
+    max_abs_diff_reference_velocity_mm_s : float
+    axes : dict axis -> {"rms_um", "max_um"}   tracking-error discrepancy vs the measurement
+    contour : dict or None          {"axes": [a, b], "rms_um", "max_um"} contour-error discrepancy
+    n_samples : int
+    steps_per_second : float        FMU steps per second through fmpy (including Python overhead)
+    fmi_version : str
+    tolerance_mm : float            the agreement target of the reference comparison
+    """
+
+    fmu: str
+    problems: list = field(default_factory=list)
+    max_abs_diff_reference_mm: float = float("nan")
+    max_abs_diff_reference_velocity_mm_s: float = float("nan")
+    axes: dict = field(default_factory=dict)
+    contour: dict | None = None
+    n_samples: int = 0
+    steps_per_second: float = float("nan")
+    fmi_version: str = ""
+    tolerance_mm: float = 1e-9
+
+    @property
+    def ok(self):
+        return not self.problems and self.max_abs_diff_reference_mm <= self.tolerance_mm
+
+    def to_dict(self):
+        d = asdict(self)
+        d["ok"] = self.ok
+        return _finite(d)
+
+    def table(self):
+        """Markdown table of the comparison."""
+        lines = [f"FMU {self.fmu} (FMI {self.fmi_version}), {self.n_samples} samples",
+                 f"fmpy validation: {'no problems' if not self.problems else f'{len(self.problems)} problem(s)'}",
+                 f"max |FMU - reference| = {self.max_abs_diff_reference_mm:.3g} mm "
+                 f"(velocity {self.max_abs_diff_reference_velocity_mm_s:.3g} mm/s; "
+                 f"target <= {self.tolerance_mm:g} mm)",
+                 "",
+                 "| axis | e RMS discrepancy [µm] | e MAX discrepancy [µm] |",
+                 "|---|---:|---:|"]
+        for a, d in self.axes.items():
+            lines.append(f"| {a} | {d['rms_um']:.3f} | {d['max_um']:.3f} |")
+        if self.contour:
+            lines.append(f"| contour {'/'.join(self.contour['axes'])} | {self.contour['rms_um']:.3f} | "
+                         f"{self.contour['max_um']:.3f} |")
+        for p in self.problems:
+            lines.append(f"problem: {p}")
+        return "\n".join(lines)
+
+
+def _finite(obj):
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    return obj
+
+
+# --------------------------------------------------------------------------- FMU driver
+class FmuRunner:
+    """Drive an extracted FMU through fmpy, one sample at a time (FMI 2.0 or 3.0)."""
+
+    def __init__(self, fmu_path, instance_name="fdid", logger=None):
+        from fmpy import extract, read_model_description
+        self.fmu_path = str(fmu_path)
+        self.md = read_model_description(self.fmu_path)
+        self.version = self.md.fmiVersion
+        if self.md.coSimulation is None:
+            raise InputError("the FMU has no Co-Simulation interface", source=self.fmu_path)
+        self._dir = tempfile.mkdtemp(prefix="fdid_run_")
+        extract(self.fmu_path, self._dir)
+        self.vars = {v.name: v for v in self.md.modelVariables}
+        ident = self.md.coSimulation.modelIdentifier
+        kw = dict(unzipDirectory=self._dir, modelIdentifier=ident, instanceName=instance_name)
+        if self.version.startswith("3"):
+            from fmpy.fmi3 import FMU3Slave
+            self.fmu = FMU3Slave(instantiationToken=self.md.instantiationToken, **kw)
+        else:
+            from fmpy.fmi2 import FMU2Slave
+            self.fmu = FMU2Slave(guid=self.md.guid, **kw)
+        self._logger = logger
+
+    def vr(self, name):
+        if name not in self.vars:
+            raise InputError(f"the FMU has no variable '{name}'", source=self.fmu_path, column=name)
+        return self.vars[name].valueReference
+
+    def close(self):
+        try:
+            self.fmu.freeInstance()
+        except Exception:  # noqa: BLE001 - best effort clean-up
+            pass
+        shutil.rmtree(self._dir, ignore_errors=True)
+
+    def run(self, inputs, n, Ts, outputs, parameters=None, booleans=None, comm_step=1, start_time=0.0):
+        """Simulate ``n`` samples.
+
+        Parameters
+        ----------
+        inputs : dict name -> array (n,)       FMU inputs, sample k applied before reading step k
+        outputs : list of names                read at every communication point
+        parameters : dict name -> float        set before exitInitializationMode
+        booleans : dict name -> bool
+        comm_step : int                        communication step in samples (inputs held)
+
+        Returns
+        -------
+        dict name -> array (n // comm_step,)
+        """
+        f = self.fmu
+        three = self.version.startswith("3")
+        in_vr = [self.vr(k) for k in inputs]
+        in_val = np.column_stack([np.asarray(inputs[k], float) for k in inputs]) if inputs else np.zeros((n, 0))
+        out_vr = [self.vr(k) for k in outputs]
+        setr = f.setFloat64 if three else f.setReal
+        getr = f.getFloat64 if three else f.getReal
+        if three:
+            f.instantiate(loggingOn=False)
+            f.enterInitializationMode(startTime=start_time)
+        else:
+            f.instantiate(loggingOn=False, callbacks=self._logger)
+            f.setupExperiment(startTime=start_time)
+            f.enterInitializationMode()
+        for k, v in (parameters or {}).items():
+            setr([self.vr(k)], [float(v)])
+        for k, v in (booleans or {}).items():
+            f.setBoolean([self.vr(k)], [bool(v)])
+        if in_vr:
+            setr(in_vr, list(in_val[0]))
+        f.exitInitializationMode()
+        steps = range(0, n - n % comm_step if comm_step > 1 else n, comm_step)
+        out = np.empty((len(steps), len(out_vr)))
+        h = comm_step * Ts
+        t = start_time
+        for j, k in enumerate(steps):
+            if in_vr:
+                setr(in_vr, list(in_val[k]))
+            out[j] = getr(out_vr)
+            if three:
+                f.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+            else:
+                f.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+            t = start_time + (j + 1) * h
+        f.terminate()
+        return {name: out[:, i] for i, name in enumerate(outputs)}
+
+
+def run_fmu(fmu_path, commands, Ts, start_velocity=None, externals=None, parameters=None,
+            booleans=None, outputs=None, comm_step=1):
+    """Run an fdid FMU through fmpy from commanded positions.
+
+    Parameters
+    ----------
+    commands : dict axis -> commanded position array (mm)
+    Ts : float, s          sample time of the commands (= the model's)
+    start_velocity : dict axis -> mm/s (sets ``<axis>_v0``)
+    externals : dict FMU input name -> array
+    parameters, booleans : extra parameter values
+    outputs : list of variable names (default: every output)
+
+    Returns
+    -------
+    dict variable name -> array
+    """
+    r = FmuRunner(fmu_path)
+    try:
+        n = len(next(iter(commands.values())))
+        ins = {f"{a}_x_cmd": np.asarray(c, float) for a, c in commands.items()}
+        ins.update({k: np.asarray(v, float) for k, v in (externals or {}).items()})
+        params = dict(parameters or {})
+        for a, v in (start_velocity or {}).items():
+            params[f"{a}_v0"] = float(v)
+        if outputs is None:
+            outputs = [v.name for v in r.md.modelVariables if v.causality == "output"]
+        return r.run(ins, n, Ts, outputs, params, booleans, comm_step=comm_step)
+    finally:
+        r.close()
+
+
+# --------------------------------------------------------------------------- validation
+def _model_from_fmu(fmu_path):
+    with zipfile.ZipFile(fmu_path) as zf:
+        try:
+            d = json.loads(zf.read("resources/model.json"))
+        except KeyError:
+            raise InputError("the FMU carries no resources/model.json; pass the model (--model)",
+                             source=str(fmu_path)) from None
+    return DriveModel.from_dict(d, source=f"{fmu_path}:resources/model.json")
+
+
+def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9):
+    """Validate an FMU against the reference simulator and a measured trace.
+
+    Parameters
+    ----------
+    fmu_path : str or Path
+    trace : Trace            measured record with ``cmd`` (and ``act`` for the discrepancy)
+                             channels of the model's axes
+    model : DriveModel, path, or None
+        The reference model; default: the ``resources/model.json`` inside the FMU.
+    tolerance_mm : float     agreement target with the reference (problems list it when missed)
+
+    Returns
+    -------
+    ValidationResult
+    """
+    import time
+
+    from fmpy.validation import validate_fmu as fmpy_validate
+
+    from ..simulate import simulate
+    fmu_path = Path(fmu_path)
+    if not fmu_path.is_file():
+        raise InputError("FMU file not found", source=str(fmu_path))
+    if not isinstance(trace, Trace):
+        raise InputError(f"expected a Trace, got {type(trace).__name__}", column="trace")
+    if model is None:
+        model = _model_from_fmu(fmu_path)
+    elif isinstance(model, (str, Path)):
+        model = load_model(model)
+    if not isinstance(model, DriveModel):
+        raise InputError("the reference model must be a state-space DriveModel", column="model")
+    res = ValidationResult(fmu=str(fmu_path), tolerance_mm=tolerance_mm, n_samples=trace.n)
+    res.problems = [f"fmpy: {p}" for p in fmpy_validate(str(fmu_path))]
+    axes = model.axes
+    missing = [a for a in axes if not trace.has(a, "cmd")]
+    if missing:
+        raise InputError(f"the trace has no commanded position for axes {missing} of the model "
+                         f"(map them with --map)", source=trace.source, column="cmd")
+    if abs(trace.Ts - model.Ts) > 1e-6 * model.Ts:
+        raise InputError(f"the trace is sampled at {trace.Ts:g} s but the model at {model.Ts:g} s",
+                         source=trace.source, column="time")
+    ref = simulate(model, trace)
+    cmds = {a: np.asarray(trace.cmd(a), float) for a in axes}
+    v0 = {a: (c[1] - c[0]) / trace.Ts for a, c in cmds.items()}
+    externals = {}
+    from .layout import build_layout
+    lay = build_layout(model)
+    for v in lay.inputs:
+        if v.role == "ext":
+            p = model.inputs[v.index]
+            externals[v.name] = np.asarray(trace.extra(p.params.get("channel", p.name)), float)
+    names = []
+    for a in axes:
+        names += [f"{a}_x", f"{a}_e", f"{a}_v"] + ([f"{a}_x_tool"] if "tool_position" in ref.axes[a] else [])
+    names = [lay.by_name(n).name for n in names]
+    t0 = time.perf_counter()
+    out = run_fmu(fmu_path, cmds, trace.Ts, start_velocity=v0, externals=externals, outputs=names)
+    dt = time.perf_counter() - t0
+    res.fmi_version = _fmi_version(fmu_path)
+    res.steps_per_second = trace.n / dt if dt > 0 else float("nan")
+    dpos, dvel = 0.0, 0.0
+    for a in axes:
+        r = ref.axes[a]
+        dpos = max(dpos, float(np.max(np.abs(out[f"{a}_x"] - r["position"]))),
+                   float(np.max(np.abs(out[f"{a}_e"] - r["error"]))))
+        if "tool_position" in r:
+            dpos = max(dpos, float(np.max(np.abs(out[f"{a}_x_tool"] - r["tool_position"]))))
+        dvel = max(dvel, float(np.max(np.abs(out[f"{a}_v"] - r["velocity"]))))
+    res.max_abs_diff_reference_mm = dpos
+    res.max_abs_diff_reference_velocity_mm_s = dvel
+    if not dpos <= tolerance_mm:
+        res.problems.append(f"FMU and reference simulator differ by {dpos:.3g} mm (> {tolerance_mm:g} mm)")
+    act = {a: np.asarray(trace.act(a), float) for a in axes if trace.has(a, "act")}
+    for a, x in act.items():
+        e_meas = cmds[a] - x
+        d = (out[f"{a}_e"] - e_meas) * 1e3
+        res.axes[a] = {"rms_um": float(np.sqrt(np.mean(d ** 2))), "max_um": float(np.max(np.abs(d)))}
+    if len(act) >= 2:
+        from ..metrics import contour_error
+        a, b = list(act)[:2]
+        cxy = np.column_stack([cmds[a], cmds[b]])
+        ce_pred = contour_error(cxy, np.column_stack([out[f"{a}_x"], out[f"{b}_x"]]))
+        ce_meas = contour_error(cxy, np.column_stack([act[a], act[b]]))
+        d = (ce_pred - ce_meas) * 1e3
+        res.contour = {"axes": [a, b], "rms_um": float(np.sqrt(np.mean(d ** 2))),
+                       "max_um": float(np.max(np.abs(d)))}
+    return res
+
+
+def _fmi_version(fmu_path):
+    from fmpy import read_model_description
+    return read_model_description(str(fmu_path)).fmiVersion
