@@ -675,6 +675,8 @@ def linear_truth(cfg: MachineConfig) -> dict:
                     nums.append(np.atleast_1d(np.squeeze(num)))
                 num = _polyadd(_polyadd(nums[0], np.r_[nums[1], 0.0]), np.r_[nums[2], 0.0, 0.0])
                 num_e = _polyadd((den if i == j else np.zeros(1)), -num)
+                if abs(num_e[-1]) < 1e-10 * abs(den[-1]):
+                    num_e[-1] = 0.0  # G_er(0) = 0 up to rounding (integral/type-1 loop)
                 cont[key][aj.name][ai.name] = {"num": _trim(num_e).tolist(), "den": np.asarray(den).tolist()}
         cont["K"][aj.name] = {}
         if aj.two_mass:
