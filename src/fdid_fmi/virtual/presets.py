@@ -18,8 +18,9 @@ with_feedforward       the same machine with velocity and acceleration feed-forw
 flexible_y             deckel_maho_like with a two-mass Y axis: 20 kg tool side on a 25.8 Hz,
                        zeta 0.006 mode (motor side held); encoder on the motor, ``tool`` channel
                        on the tool side (thesis ch. 7 flexure).
-coupled_xy             deckel_maho_like plus cross-axis coupling: force on Y = 0.02 N/(mm/s^2) x
-                       X acceleration, force on X = 0.05 N/(mm/s) x Y velocity.
+coupled_xy             deckel_maho_like plus cross-axis coupling: force on Y = 0.1 N/(mm/s^2) x
+                       X acceleration (a 100 kg coupling mass), force on X = 0.5 N/(mm/s) x Y
+                       velocity.
 emps_like              one rigid axis like the EMPS benchmark: M 95.11 kg, Fv 0.2035 N/(mm/s),
                        Fc 20.39 N, offset -3.16 N, P-P controller (Kp 160.18 1/s, Kv 8.557
                        N/(mm/s), no integral action), force limit 351.5 N (10 V x 35.15 N/V),
@@ -74,8 +75,8 @@ def flexible_y() -> MachineConfig:
 def coupled_xy() -> MachineConfig:
     """deckel_maho_like with acceleration (X -> Y) and velocity (Y -> X) cross coupling."""
     cfg = deckel_maho_like()
-    cfg.couplings = [Coupling(source="x", target="y", kind="acc", gain=0.02),
-                     Coupling(source="y", target="x", kind="vel", gain=0.05)]
+    cfg.couplings = [Coupling(source="x", target="y", kind="acc", gain=0.1),
+                     Coupling(source="y", target="x", kind="vel", gain=0.5)]
     cfg.name = "coupled_xy"
     return cfg
 
