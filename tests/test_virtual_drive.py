@@ -211,13 +211,14 @@ def test_friction_sticks_at_rest_and_sub_steps_converge():
     lin = simulate_machine(linearised(with_feedforward()), traj, truth=False)
     friction_part = out.error("x") - lin.error("x")
     assert np.abs(friction_part).max() > np.abs(lin.error("x")).max()
-    # sub-step convergence and whole-sample shortcuts: same answer to one encoder count
+    # sub-step convergence and whole-sample shortcuts agree to a few percent of the friction
+    # effect (first-order convergence in the sub-step: ~0.1 um here)
     fine = with_feedforward()
-    fine.n_sub, fine.adaptive = 32, False
+    fine.n_sub, fine.adaptive = 64, False
     ref = simulate_machine(fine, traj, truth=False)
-    q = a.resolution
     for ax in ("x", "y"):
-        assert np.abs(ref.act(ax) - out.act(ax)).max() <= 1.5 * q
+        diff = np.abs(ref.extra(f"{ax}_act_true") - out.extra(f"{ax}_act_true")).max()
+        assert diff < 0.03 * np.abs(friction_part).max()
 
 
 def test_asymmetric_coulomb_and_backlash():

@@ -133,6 +133,8 @@ def simulate_machine(cfg: MachineConfig, commands, seed=0, truth=True, source=No
     beta_h = [Gwh[fric_v[i], fric_dof[i]] for i in range(na)]
     beta_T = [GwT[fric_v[i], fric_dof[i]] for i in range(na)]
     stuck = [True] * na  # at rest at the start
+    # a stuck axis keeps |v| ~ 0 up to cross-coupling terms of the other axes' friction
+    v_stuck = [max(1e-6, 1e-3 * a.stribeck_velocity) for a in axes]
     n_full = n_split = 0
     gcol_h = [Gwh[:, fric_dof[i]].copy() for i in range(na)]
     gcol_T = [GwT[:, fric_dof[i]].copy() for i in range(na)]
@@ -239,9 +241,7 @@ def simulate_machine(cfg: MachineConfig, commands, seed=0, truth=True, source=No
         if ok:
             for i in fric_axes:
                 v0 = z[fric_v[i]]
-                if abs(v0) > v_safe[i]:
-                    f = -fmag(i, abs(v0), 1) if v0 > 0 else fmag(i, abs(v0), -1)
-                elif stuck[i]:
+                if stuck[i] and abs(v0) <= v_stuck[i]:
                     # stays stuck for the whole sample if the breakaway force holds it
                     vfree = zf[fric_v[i]]
                     lim = fmag(i, 0.0, 1) if vfree > 0 else fmag(i, 0.0, -1)
@@ -249,6 +249,8 @@ def simulate_machine(cfg: MachineConfig, commands, seed=0, truth=True, source=No
                         ok = False
                         break
                     f = -vfree / beta_T[i]
+                elif abs(v0) > v_safe[i]:
+                    f = -fmag(i, abs(v0), 1) if v0 > 0 else fmag(i, abs(v0), -1)
                 else:
                     ok = False
                     break
@@ -256,7 +258,7 @@ def simulate_machine(cfg: MachineConfig, commands, seed=0, truth=True, source=No
                 zf += gcol_T[i] * f
             if ok:
                 for i in fric_axes:
-                    if stuck[i] and abs(z[fric_v[i]]) <= v_safe[i]:
+                    if stuck[i] and abs(z[fric_v[i]]) <= v_stuck[i]:
                         continue
                     v0, v1 = z[fric_v[i]], zf[fric_v[i]]
                     if v0 * v1 <= 0 or abs(v1) <= v_safe[i]:
@@ -271,6 +273,7 @@ def simulate_machine(cfg: MachineConfig, commands, seed=0, truth=True, source=No
             for i in fric_axes:
                 Wrec[k, fric_dof[i]] += fvals[i]
                 Ff[k, i] = fvals[i]
+                stuck[i] = stuck[i] and abs(z[fric_v[i]]) <= v_stuck[i]
             z = zf
             n_full += 1
             continue
