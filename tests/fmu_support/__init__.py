@@ -73,7 +73,7 @@ def siso_model(v_tilde=1.0, level=1.0, **kw):
         outputs=[Port("x_pos", "mm", "position", "x"), Port("x_err", "mm", "error", "x")])
 
 
-def coupled_model(kxy=0.3, kyx=0.2):
+def coupled_model(kxy=0.3, kyx=0.2, vt_y=2.2, level_y=0.9):
     """Two axes (x, y), two friction inputs, cross terms in C and (after Tustin) in D.
 
     The friction of each axis also drives the other axis's error through k * d0 s/P(s)
@@ -119,7 +119,7 @@ def coupled_model(kxy=0.3, kyx=0.2):
         inputs=[Port("x_cmd", "mm", "command", "x"),
                 Port("x_dnf", "1", "friction", "x", {"v_tilde": 0.8, "level": 1.0}),
                 Port("y_cmd", "mm", "command", "y"),
-                Port("y_dnf", "1", "friction", "y", {"v_tilde": 1.2, "level": 0.9})],
+                Port("y_dnf", "1", "friction", "y", {"v_tilde": vt_y, "level": level_y})],
         outputs=[Port("x_pos", "mm", "position", "x"), Port("x_err", "mm", "error", "x"),
                  Port("y_pos", "mm", "position", "y"), Port("y_err", "mm", "error", "y"),
                  Port("y_vel", "mm_s", "velocity", "y")])
@@ -197,7 +197,8 @@ def smooth_moves(n, rng, amplitude=20.0, vmax=80.0, start=0.0, v_start=0.0, Ts=T
     k = 0
     while k < n:
         dur = int(rng.integers(150, 600))
-        v[k:k + dur] = rng.uniform(-vmax, vmax) if rng.random() < 0.75 else 0.0
+        # moves or stops; no long slow crawls (stick-slip hunting at a few mm/s is chaotic)
+        v[k:k + dur] = rng.choice((-1, 1)) * rng.uniform(0.25 * vmax, vmax) if rng.random() < 0.75 else 0.0
         k += dur
     for width in (60, 25):                       # acceleration then jerk limit
         v = np.convolve(v, np.ones(width) / width, mode="same")

@@ -139,7 +139,8 @@ class FmuRunner:
             pass
         shutil.rmtree(self._dir, ignore_errors=True)
 
-    def run(self, inputs, n, Ts, outputs, parameters=None, booleans=None, comm_step=1, start_time=0.0):
+    def run(self, inputs, n, Ts, outputs, parameters=None, booleans=None, comm_step=1, start_time=0.0,
+            read="before"):
         """Simulate ``n`` samples.
 
         Parameters
@@ -149,6 +150,9 @@ class FmuRunner:
         parameters : dict name -> float        set before exitInitializationMode
         booleans : dict name -> bool
         comm_step : int                        communication step in samples (inputs held)
+        read : ``before`` (default): outputs of sample k read after its input is set, before
+               doStep; ``after``: read after doStep, before the next input (what fmpy's
+               simulate_fmu and most masters record: row k = time t_k + h, input k held)
 
         Returns
         -------
@@ -182,18 +186,18 @@ class FmuRunner:
         for j, k in enumerate(steps):
             if in_vr:
                 setr(in_vr, list(in_val[k]))
-            out[j] = getr(out_vr)
-            if three:
-                f.doStep(currentCommunicationPoint=t, communicationStepSize=h)
-            else:
-                f.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+            if read == "before":
+                out[j] = getr(out_vr)
+            f.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+            if read != "before":
+                out[j] = getr(out_vr)
             t = start_time + (j + 1) * h
         f.terminate()
         return {name: out[:, i] for i, name in enumerate(outputs)}
 
 
 def run_fmu(fmu_path, commands, Ts, start_velocity=None, externals=None, parameters=None,
-            booleans=None, outputs=None, comm_step=1):
+            booleans=None, outputs=None, comm_step=1, read="before"):
     """Run an fdid FMU through fmpy from commanded positions.
 
     Parameters
@@ -204,6 +208,7 @@ def run_fmu(fmu_path, commands, Ts, start_velocity=None, externals=None, paramet
     externals : dict FMU input name -> array
     parameters, booleans : extra parameter values
     outputs : list of variable names (default: every output)
+    comm_step : communication step in samples; read : see :meth:`FmuRunner.run`
 
     Returns
     -------
@@ -219,7 +224,7 @@ def run_fmu(fmu_path, commands, Ts, start_velocity=None, externals=None, paramet
             params[f"{a}_v0"] = float(v)
         if outputs is None:
             outputs = [v.name for v in r.md.modelVariables if v.causality == "output"]
-        return r.run(ins, n, Ts, outputs, params, booleans, comm_step=comm_step)
+        return r.run(ins, n, Ts, outputs, params, booleans, comm_step=comm_step, read=read)
     finally:
         r.close()
 
