@@ -61,6 +61,41 @@ def _continuous(theta):
     return np.array([1.0, al1 * a2, a2, ai * a2]), be2 * a2, be1 * a2, be0 * a2, dp * a2, dm * a2
 
 
+def _constrained_ls(Phi, Y, scale, check, p_min_hz, wn_min_hz=0.1, zeta_min=0.05, zeta_max=10.0):
+    """Eqn 4.7 subject to the pole constraints of Eqn 4.9 (the constrained LS of [3]).
+
+    For fixed poles (p, wn, zeta) the characteristic coefficients a1..a3 are known, the alpha terms
+    move to the left-hand side and the remaining parameters (beta, delta) follow by LS; a bounded
+    local search over the poles, started from the unconstrained solution clipped into the box,
+    minimises the same equation error as the unconstrained method.
+    """
+    lo = np.array([np.log(2 * np.pi * p_min_hz), np.log(2 * np.pi * wn_min_hz), zeta_min])
+    hi = np.array([np.log(2 * np.pi * 1e4), np.log(2 * np.pi * 1e4), zeta_max])
+    lin = [3, 4, 5, 6, 7]
+
+    def solve(z):
+        p, wn, zeta = np.exp(z[0]), np.exp(z[1]), z[2]
+        a = np.convolve([1.0, p], [1.0, 2 * zeta * wn, wn * wn])
+        a2 = a[2]
+        alpha = np.array([a[3] / a2, a[1] / a2, 1.0 / a2])
+        rhs = Y - Phi[:, :3] @ alpha
+        beta = np.linalg.lstsq(Phi[:, lin] / scale[lin], rhs, rcond=None)[0] / scale[lin]
+        theta = np.concatenate([alpha, beta])
+        r = Y - Phi @ theta
+        return float(r @ r), theta
+
+    x0 = np.clip([np.log(max(2 * np.pi * abs(check["p_hz"]), 1e-9)),
+                  np.log(max(2 * np.pi * check["wn_hz"], 1e-9)),
+                  check["zeta"] if np.isfinite(check["zeta"]) else 0.7], lo, hi)
+    best = None
+    for start in (x0, 0.5 * (lo + hi), np.array([lo[0] + 1.0, x0[1], 0.7])):
+        res = optimize.minimize(lambda z: solve(z)[0], np.clip(start, lo, hi), method="L-BFGS-B",
+                                bounds=list(zip(lo, hi)))
+        if best is None or res.fun < best.fun:
+            best = res
+    return solve(best.x)[1]
+
+
 def identify_full_ls(traces, axis="x", cutoff_hz=None, order=2, v_tilde=None, p_min_hz=0.1):
     """Full LS model of one axis (Eqn 4.7) as a DriveModel.
 
@@ -72,7 +107,7 @@ def identify_full_ls(traces, axis="x", cutoff_hz=None, order=2, v_tilde=None, p_
     v_tilde : float, mm/s, transition band standing in for the sign function in simulation
         (default 1e-3 x max |v|)
     p_min_hz : float, the pole constraint of Eqn 4.9; when the unconstrained LS violates
-        Eqn 4.9 the fit is repeated with the slow pole bounded (constrained LS of [3])
+        Eqn 4.9 the fit is repeated with the poles constrained (constrained LS of [3])
 
     Raises
     ------
@@ -105,13 +140,15 @@ def identify_full_ls(traces, axis="x", cutoff_hz=None, order=2, v_tilde=None, p_
     check = pole_constraints(a, p_min_hz=p_min_hz)
     constrained = False
     if not check["satisfied"]:
-        # the constrained LS of the original method: the slow real pole p ~ a3/a2 = alpha_i is
-        # kept >= 2 pi p_min (Eqn 4.9), all other parameters free
+        # the constrained LS of [3], in two steps: the slow real pole p ~ a3/a2 = alpha_i bounded
+        # below (a linear bound, cheap and usually enough), then all three poles of Eqn 4.9
         lo = np.full(8, -np.inf)
         lo[0] = 2 * np.pi * p_min_hz * scale[0]
-        res = optimize.lsq_linear(Phi / scale, Y, bounds=(lo, np.full(8, np.inf)))
-        theta = res.x / scale
+        theta = optimize.lsq_linear(Phi / scale, Y, bounds=(lo, np.full(8, np.inf))).x / scale
         a, b0, b1, b2, dnp, dnm = _continuous(theta)
+        if not pole_constraints(a, p_min_hz=p_min_hz)["satisfied"]:
+            theta = _constrained_ls(Phi, Y, scale, check, p_min_hz)
+            a, b0, b1, b2, dnp, dnm = _continuous(theta)
         check = pole_constraints(a, p_min_hz=p_min_hz)
         constrained = True
     if not check["stable"]:

@@ -145,26 +145,32 @@ class LSProblem:
             Z[j] = _measured_output(tr, o)
         return Segment(W=W, wref=wref, dw=dw, vel=vel, pos=pos, Z=Z, R=R)
 
-    def fill_nonlinear_inputs(self, sg, v_tilde):
-        """Friction and feature rows of the inputs for the given v_tilde (per axis)."""
-        from ..simulate import feature_value  # noqa: F401  (same definitions as the simulator)
+    def fill_nonlinear_inputs(self, sg, v_tilde, override=None):
+        """Friction and feature rows of the inputs for the given v_tilde (per axis).
+
+        ``override`` maps an input index to the values to use after the run-up (the friction
+        signal a simulation produced, see ``pole_search.refine_friction``).
+        """
         W = sg.W.copy()
         for i, ins in enumerate(self.s.inputs):
-            if ins.kind == "friction":
+            if override and i in override:
+                W[i, : sg.R] = np.clip(sg.vel[ins.axis][: sg.R] / v_tilde[ins.axis], -1.0, 1.0)
+                W[i, sg.R:] = override[i]
+            elif ins.kind == "friction":
                 W[i] = np.clip(sg.vel[ins.axis] / v_tilde[ins.axis], -1.0, 1.0)
             elif ins.kind == "feature":
                 W[i] = feature_signal(ins.params, sg.vel[ins.axis], sg.pos[ins.axis])
         return W
 
     # ------------------------------------------------------------ projection
-    def design(self, a, v_tilde):
+    def design(self, a, v_tilde, overrides=None):
         """Regressors of the used columns, stacked over segments: (columns, samples)."""
         den, F = rg.tustin_basis(a, self.Ts)
         Fu = F[self.used_l]
         lpos = {l: k for k, l in enumerate(self.used_l)}
         blocks = []
-        for sg in self.segments:
-            W = self.fill_nonlinear_inputs(sg, v_tilde)
+        for k, sg in enumerate(self.segments):
+            W = self.fill_nonlinear_inputs(sg, v_tilde, overrides[k] if overrides else None)
             R = rg.allpole_filter(den, W, W[:, 0], sg.dw)
             Phi = rg.regressors(R, Fu, self.n)[:, sg.R:]     # (m, N, len(used_l)), run-up dropped
             Mt = np.empty((len(self.used), Phi.shape[1]))
@@ -175,9 +181,12 @@ class LSProblem:
             blocks.append(Mt)
         return blocks[0] if len(blocks) == 1 else np.concatenate(blocks, axis=1)
 
-    def project(self, a, v_tilde, want_residuals=False):
-        """LS projection for one pole set; returns a :class:`Fit` (and residuals if asked)."""
-        Mt = self.design(a, v_tilde)
+    def project(self, a, v_tilde, want_residuals=False, overrides=None):
+        """LS projection for one pole set; returns a :class:`Fit` (and residuals if asked).
+
+        ``overrides``: per segment, {input index: values} replacing computed input rows.
+        """
+        Mt = self.design(a, v_tilde, overrides)
         Z = self.Z
         r = np.abs(Mt).max(axis=1)
         r[r == 0] = 1.0
