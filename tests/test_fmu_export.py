@@ -380,3 +380,34 @@ def test_win64_dll_is_built(tmp_path):
     assert "fmi2DoStep" in dump and "fmi2Instantiate" in dump
     dlls = {line.split(":")[1].strip() for line in dump.splitlines() if "DLL Name" in line}
     assert dlls <= {"KERNEL32.dll", "msvcrt.dll"}, dlls
+
+
+def test_fmi3_fmu_validates_and_equals_the_reference(tmp_path):
+    from fmpy.fmi3 import FMU3Slave  # noqa: F401  (fmpy with FMI 3.0 support)
+    m = fs.coupled_model()
+    fmu = export_fmu(m, tmp_path / "c3.fmu", fmi_version=3)
+    assert fmpy_validate(str(fmu)) == []
+    md = read_model_description(str(fmu))
+    assert md.fmiVersion == "3.0" and float(md.coSimulation.fixedInternalStepSize) == m.Ts
+    with zipfile.ZipFile(fmu) as zf:
+        names = set(zf.namelist())
+        assert {"binaries/x86_64-linux/c3.so", "sources/buildDescription.xml",
+                "sources/fmi3Functions.c"} <= names
+    cmds, _ = _commands(m, seed=11, v_start=35.0)
+    v0 = {a: (c[1] - c[0]) / m.Ts for a, c in cmds.items()}
+    ref = simulate(m, cmds, Ts=m.Ts, start_velocity=v0)
+    out = run_fmu(fmu, cmds, m.Ts, start_velocity=v0)
+    assert _max_diff(m, out, ref)[0] <= 1e-9
+    out3 = run_fmu(fmu, cmds, m.Ts, comm_step=3, outputs=["x_x"])
+    assert len(out3["x_x"]) == N // 3
+    # a step size that is not a multiple of Ts is refused
+    r = FmuRunner(fmu)
+    try:
+        f = r.fmu
+        f.instantiate()
+        f.enterInitializationMode(startTime=0.0)
+        f.exitInitializationMode()
+        with pytest.raises(Exception):
+            f.doStep(0.0, 1.5 * m.Ts)
+    finally:
+        r.close()

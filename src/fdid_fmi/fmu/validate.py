@@ -121,7 +121,7 @@ class FmuRunner:
         kw = dict(unzipDirectory=self._dir, modelIdentifier=ident, instanceName=instance_name)
         if self.version.startswith("3"):
             from fmpy.fmi3 import FMU3Slave
-            self.fmu = FMU3Slave(instantiationToken=self.md.instantiationToken, **kw)
+            self.fmu = FMU3Slave(guid=self.md.guid, **kw)
         else:
             from fmpy.fmi2 import FMU2Slave
             self.fmu = FMU2Slave(guid=self.md.guid, **kw)
