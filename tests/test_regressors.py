@@ -26,7 +26,7 @@ def test_regressors_equal_bilinear_filters(poly):
     den, F = rg.tustin_basis(poly, TS)
     t = np.arange(6000) * TS
     w = np.sin(7 * t) * (t > 1) + 0.3 * (t > 2.5)
-    phi = rg.regressors(rg.allpole_filter(den, w[None]), F, n)[0]
+    phi = rg.regressors(rg.allpole_filter(den, w[None]), F, n)[0].T
     for l in range(n + 1):
         num = np.zeros(n + 1)
         num[l] = 1.0                       # s^(n-l)
@@ -39,7 +39,7 @@ def test_ramp_start_is_steady(poly):
     """A record that starts in motion: the regressors start in the ramp's steady state."""
     den, F = rg.tustin_basis(poly, TS)
     w = 5.0 + 0.002 * np.arange(4000)
-    phi = rg.regressors(rg.allpole_filter(den, w[None]), F, 3)[0]
+    phi = rg.regressors(rg.allpole_filter(den, w[None]), F, 3)[0].T
     # s^1/A of a ramp is constant, s^2 and s^3 of it vanish: no start-up transient
     np.testing.assert_allclose(phi[:, 2], phi[-1, 2], rtol=1e-8)
     assert np.max(np.abs(phi[:, :2])) < 1e-9
@@ -52,7 +52,7 @@ def test_simo_realisation_reproduces_regressors(poly):
     w = np.random.default_rng(0).standard_normal(500).cumsum()
     w -= w[0]
     w[:2] = 0.0
-    phi = rg.regressors(rg.allpole_filter(den, w[None], 0.0, 0.0), F, 3)[0]
+    phi = rg.regressors(rg.allpole_filter(den, w[None], 0.0, 0.0), F, 3)[0].T
     xi = np.zeros(3)
     out = np.empty_like(phi)
     for k, wk in enumerate(w):

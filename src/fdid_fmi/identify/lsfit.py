@@ -172,10 +172,10 @@ class LSProblem:
         for k, sg in enumerate(self.segments):
             W = self.fill_nonlinear_inputs(sg, v_tilde, overrides[k] if overrides else None)
             R = rg.allpole_filter(den, W, W[:, 0], sg.dw)
-            Phi = rg.regressors(R, Fu, self.n)[:, sg.R:]     # (m, N, len(used_l)), run-up dropped
-            Mt = np.empty((len(self.used), Phi.shape[1]))
+            Phi = rg.regressors(R, Fu, self.n)[:, :, sg.R:]  # (m, len(used_l), N), run-up dropped
+            Mt = np.empty((len(self.used), Phi.shape[2]))
             for k, (i, l) in enumerate(self.used):
-                Mt[k] = Phi[i, :, lpos[l]]
+                Mt[k] = Phi[i, lpos[l]]
                 if l == self.n and sg.wref[i] != 0.0:
                     Mt[k] += sg.wref[i] / a[-1]              # d.c. response of the removed offset
             blocks.append(Mt)

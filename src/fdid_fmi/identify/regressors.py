@@ -145,22 +145,24 @@ def allpole_filter(den, W, w0=None, dw=None):
 
 
 def regressors(R, F, n):
-    """phi_l (l = 0..n) of every input from the all-pole outputs.
+    """phi_l of every input from the all-pole outputs.
 
     Parameters
     ----------
     R : (m, N + n) from :func:`allpole_filter`
-    F : (n+1, n+1) from :func:`tustin_basis`
+    F : (L, n+1) rows of :func:`tustin_basis` (all n+1 or the ones needed)
 
     Returns
     -------
-    Phi : (m, N, n+1) Phi[i, :, l] = phi_l of input i
+    Phi : (m, L, N) Phi[i, l] = phi_l of input i (contiguous rows: the LS works on them)
     """
-    m, L = R.shape
-    N = L - n
-    # lagged matrix: Q[i, k, j] = r_i[k - j]
-    Q = np.lib.stride_tricks.sliding_window_view(R, n + 1, axis=-1)[:, :, ::-1]
-    return Q[:, :N, :] @ F.T
+    m, total = R.shape
+    N = total - n
+    F = np.asarray(F, float)
+    out = np.zeros((m, F.shape[0], N))
+    for j in range(n + 1):                       # phi_l[k] = sum_j F[l, j] r[k - j]
+        out += F[None, :, j, None] * R[:, None, n - j: n - j + N]
+    return out
 
 
 def simo_realisation(den, F):
