@@ -1,0 +1,480 @@
+"""Augmentation: add a detected effect to a model's structure and refit it with the pole search.
+
+A :class:`Recipe` is everything needed to refit a pole-search model: its structure (inputs,
+outputs, numerator masks), its current poles, the friction transition velocity, the dead time per
+axis and the effects added so far. Effects change the recipe; :func:`fit` turns a recipe into a
+:class:`~fdid_fmi.model.DriveModel` with the pole-search engine (``identify_mimo``), so every
+effect is an ordinary part of the state space and the exported FMU carries it without special
+code:
+
+==========================  ======================================================================
+effect (``kind``)           how the model carries it
+==========================  ======================================================================
+``stribeck``                feature input s exp(-(v/v_s)^2), s = sat(v / v_tilde), through the
+                            friction path's numerator terms
+``asymmetric_friction``     feature input |sat(v / v_tilde)| (a direction-independent friction
+                            offset), friction path terms
+``backlash``                feature input sat(v / v_b) on a fitted tool-side output (all numerator
+                            terms: a d.c. offset of -b/2 per direction), none on the motor side
+``periodic_position``       feature inputs sin / cos(2 pi x / lambda) of the model's own position,
+                            friction (force) path terms
+``coupling``                external input: another axis's commanded position (all terms but
+                            the d.c. one)
+``extra_input``             external input: an unused trace channel (all numerator terms)
+``mode``                    one more complex pole pair, searched near the detected frequency
+``delay``                   a d-sample delay line on the COMMAND input inside A/B: the LTI part is
+                            fitted to x_r(k - d) and the derived error row still uses x_r(k)
+==========================  ======================================================================
+
+Numerator masks are kept as sets of powers of s relative to the order n (``b[l]`` multiplies
+s^(n-l)); when a pole pair is added, a pair that had the highest power keeps all high powers and
+the low powers (d.c. terms) keep their meaning (:func:`_shift_mask`).
+
+Refits (``search``): ``locked`` one LS projection with every pole fixed (screening of effect
+parameters); ``local`` the poles searched in a window around their current values (real poles
+/ 2 .. x 2, natural frequencies / 1.5 .. x 1.5, damping / 3 .. x 3), new pairs in their own
+bounds; ``wide`` the default search space of the engine (a dead time moves the poles far).
+v_tilde stays at the model's value.
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..identify.pole_search import identify_mimo
+from ..identify.structure import Bounds, InputSpec, OutputSpec, Structure, default_bounds
+from ..model import DriveModel
+from .residuals import delayed, with_channels
+
+
+@dataclass
+class Recipe:
+    """How to (re)build a diagnosed model; see module docstring."""
+
+    inputs: list                    # InputSpec
+    outputs: list                   # OutputSpec
+    masks: dict                     # (out name, in name) -> frozenset of s-powers
+    dc_gain: dict
+    friction_sign: dict
+    velocity: str
+    ma_order: int
+    real_hz: list
+    complex_hz_zeta: list           # [(hz, zeta)]
+    v_tilde: dict                   # axis -> mm/s
+    new_pairs: list = field(default_factory=list)    # bounds [(lo_hz, hi_hz, zlo, zhi)] searched
+    delays: dict = field(default_factory=dict)       # axis -> samples
+    effects: list = field(default_factory=list)      # effect dicts added by diagnosis
+
+    @property
+    def order(self):
+        return len(self.real_hz) + 2 * (len(self.complex_hz_zeta) + len(self.new_pairs))
+
+    def copy(self):
+        return copy.deepcopy(self)
+
+    @property
+    def axes(self):
+        return [s.axis for s in self.inputs if s.kind == "command"]
+
+    def input_names(self):
+        return [s.name for s in self.inputs]
+
+
+def recipe_from_model(model: DriveModel) -> Recipe:
+    """Recipe of a pole-search / MIMO model (``identification["structure"]`` must be present)."""
+    ident = model.identification or {}
+    st = ident.get("structure")
+    if not st:
+        raise InputError("diagnosis refits the model with the pole search and needs a pole-search or "
+                         "MIMO model (its identification has no 'structure'; quasi-static, Full-LS and "
+                         "combined per-axis models are not supported)", column="identification")
+    ins = [InputSpec(**{k: v for k, v in d.items() if k in ("kind", "axis", "channel", "params", "name")})
+           for d in st["inputs"]]
+    outs = [OutputSpec(**{k: v for k, v in d.items()
+                          if k in ("kind", "axis", "integrators", "predicts", "name")}) for d in st["outputs"]]
+    real = list(ident.get("real_hz", [])) + list(ident.get("locked_real_hz", []))
+    cplx = [tuple(c) for c in ident.get("complex_hz_zeta", [])] + \
+           [tuple(c) for c in ident.get("locked_complex", [])]
+    n = len(real) + 2 * len(cplx)
+    masks = {}
+    for key, ls in st.get("mask", {}).items():
+        o, i = key.split("|", 1)
+        masks[(o, i)] = frozenset(n - int(l) for l in ls)
+    def pairs(d):
+        out = {}
+        for key, v in d.items():
+            o, i = key.split("|", 1)
+            out[(o, i)] = tuple(v) if isinstance(v, list) else v
+        return out
+    vt = ident.get("v_tilde_mm_s") or {}
+    fric_axes = [s.axis for s in ins if s.kind == "friction"]
+    for a in fric_axes:
+        if a not in vt:
+            p = model.inputs[model.input_index("friction", a)]
+            vt[a] = float(p.params["v_tilde"])
+    diag = ident.get("diagnose", {})
+    return Recipe(inputs=ins, outputs=outs, masks=masks, dc_gain=pairs(st.get("dc_gain", {})),
+                  friction_sign=pairs(st.get("friction_sign", {})), velocity=st.get("velocity", "backward"),
+                  ma_order=int(st.get("ma_order", 1)), real_hz=real, complex_hz_zeta=cplx,
+                  v_tilde={a: float(v) for a, v in vt.items()},
+                  delays={a: int(d) for a, d in diag.get("delays", {}).items()},
+                  effects=list(model.effects))
+
+
+# ------------------------------------------------------------------------- structure
+def _shift_mask(powers, n_old, n_new):
+    """Masks as s-powers survive an order change; a mask that reached s^n_old reaches s^n_new."""
+    p = set(powers)
+    if n_old in p:
+        p |= set(range(n_old + 1, n_new + 1))
+    return frozenset(p)
+
+
+def structure_of(recipe: Recipe, search="local"):
+    """(Structure, Bounds or None) for a refit of the recipe."""
+    n = recipe.order
+    if search == "locked":
+        n_real, n_cplx = 0, 0
+        locked_real = list(recipe.real_hz)
+        locked_cplx = list(recipe.complex_hz_zeta) + [((lo * hi) ** 0.5, (zl * zh) ** 0.5)
+                                                      for lo, hi, zl, zh in recipe.new_pairs]
+    else:
+        n_real, n_cplx = len(recipe.real_hz), len(recipe.complex_hz_zeta) + len(recipe.new_pairs)
+        locked_real, locked_cplx = [], []
+    mask = {}
+    for key, pw in recipe.masks.items():
+        ls = tuple(sorted(n - p for p in pw if 0 <= n - p <= n))
+        mask[key] = ls
+    st = Structure(inputs=copy.deepcopy(recipe.inputs), outputs=copy.deepcopy(recipe.outputs),
+                   n_real=n_real, n_complex=n_cplx, locked_real_hz=locked_real,
+                   locked_complex=locked_cplx, mask=mask, dc_gain=dict(recipe.dc_gain),
+                   friction_sign=dict(recipe.friction_sign), velocity=recipe.velocity,
+                   ma_order=recipe.ma_order)
+    return st, n_real, n_cplx
+
+
+def _bounds(recipe: Recipe, Ts, search):
+    nyq = 0.5 / Ts
+    hi_cap = 0.95 * nyq
+    if search == "locked":
+        return Bounds([], [], [], None)
+    if search == "wide":
+        b = default_bounds(Ts, len(recipe.real_hz), len(recipe.complex_hz_zeta))
+        real, om, ze = list(b.real_hz), list(b.omega_hz), list(b.zeta)
+    else:
+        real = [(max(0.05, p / 2.0), min(hi_cap, p * 2.0)) for p in recipe.real_hz]
+        real = [(lo, hi) if lo < hi else (hi_cap / 2, hi_cap) for lo, hi in real]
+        om = [(max(0.05, w / 1.5), min(hi_cap, w * 1.5)) for w, _ in recipe.complex_hz_zeta]
+        ze = [(max(0.003, z / 3.0), min(4.0, max(z * 3.0, 0.01))) for _, z in recipe.complex_hz_zeta]
+    for lo, hi, zl, zh in recipe.new_pairs:
+        om.append((max(0.05, lo), min(hi_cap, hi)))
+        ze.append((zl, zh))
+    return Bounds(real, om, ze, None)
+
+
+def shifted_traces(recipe: Recipe, traces):
+    """Training traces with each delayed axis's command shifted by its dead time."""
+    if not any(recipe.delays.values()):
+        return list(traces)
+    out = []
+    for tr in traces:
+        rep = {tr.roles[a]["cmd"]: delayed(tr.cmd(a), d) for a, d in recipe.delays.items() if d}
+        out.append(with_channels(tr, rep, source_suffix=""))
+    return out
+
+
+def model_velocity_traces(model: DriveModel, traces):
+    """Traces whose ``vel`` role is the free-run velocity of ``model`` (mm/s).
+
+    The engine computes friction and feature regressors from the trace's velocity. The encoder's
+    backward difference is noisy at low speed (quantisation / noise over one sample: a few tenths
+    of mm/s), where friction features live; the model's own free-run velocity is smooth and is
+    what the features see in simulation and in the FMU, so refits use it.
+    """
+    from ..simulate import simulate
+    out = []
+    for tr in traces:
+        sim = simulate(model, tr)
+        rep, roles = {}, {a: dict(r) for a, r in tr.roles.items()}
+        for a in model.axes:
+            name = f"{a}_vel_model"
+            rep[name] = sim.axes[a]["velocity"]
+            roles[a]["vel"] = name
+        t2 = with_channels(tr, rep)
+        t2.roles = roles
+        t2._check()
+        out.append(t2)
+    return out
+
+
+def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, refine=True) -> DriveModel:
+    """Refit a recipe on training traces with the pole-search engine (see module docstring).
+
+    ``traces`` should carry the velocity the features are to see (:func:`model_velocity_traces`).
+    ``refine``: the engine's simulation-consistent friction refinement (off for quick screening).
+
+    Returns
+    -------
+    DriveModel with ``effects`` = the recipe's effects, dead times as delay lines, and
+    ``identification["diagnose"]`` recording the recipe's delays.
+    """
+    traces = [traces] if not isinstance(traces, (list, tuple)) else list(traces)
+    st, n_real, n_cplx = structure_of(recipe, search)
+    Ts = traces[0].Ts
+    bounds = _bounds(recipe, Ts, search)
+    if search != "locked":
+        bounds = Bounds(bounds.real_hz[:n_real], bounds.omega_hz[:n_cplx], bounds.zeta[:n_cplx], None)
+    model = identify_mimo(shifted_traces(recipe, traces), st, bounds=bounds, v_tilde=dict(recipe.v_tilde),
+                          method="de", seed=seed, maxiter=maxiter, popsize=popsize, refine=refine)
+    model.method = "pole-search+diagnose"
+    for a, d in recipe.delays.items():
+        if d:
+            model = add_command_delay(model, a, d)
+    model.identification["diagnose"] = {"delays": {a: int(d) for a, d in recipe.delays.items() if d}}
+    model.effects = copy.deepcopy(recipe.effects)
+    return model
+
+
+def updated_recipe(recipe: Recipe, model: DriveModel) -> Recipe:
+    """The recipe with the poles of a fitted model as the new current values (pairs found)."""
+    r = recipe.copy()
+    ident = model.identification
+    r.real_hz = list(ident.get("real_hz", [])) + list(ident.get("locked_real_hz", []))
+    r.complex_hz_zeta = [tuple(c) for c in ident.get("complex_hz_zeta", [])] + \
+                        [tuple(c) for c in ident.get("locked_complex", [])]
+    r.new_pairs = []
+    return r
+
+
+# --------------------------------------------------------------------------- delay line
+def add_command_delay(model: DriveModel, axis, d):
+    """Append a d-sample delay line to the command input of ``axis`` inside A/B.
+
+    The LTI part then sees x_r(k - d): every output row that used x_r now reads the last register
+    z_d = x_r(k - d), and the ``error`` output becomes e = x_r(k) - x (undelayed command minus
+    delayed-response position). The position output is not delayed itself, so the friction
+    solve stays exact (DESIGN.md, simulation semantics).
+    """
+    d = int(d)
+    if d <= 0:
+        return model
+    ic = model.input_index("command", axis)
+    if ic is None:
+        raise InputError(f"model has no command input for axis '{axis}'", column="delay")
+    A, B, C, D = model.A, model.B, model.C, model.D
+    n, m, p = A.shape[0], B.shape[1], C.shape[0]
+    N = n + d
+    A2 = np.zeros((N, N))
+    A2[:n, :n] = A
+    A2[:n, n + d - 1] = B[:, ic]               # LTI part driven by z_d
+    A2[n + 1:, n:n + d - 1] = np.eye(d - 1)    # z_j <- z_{j-1}
+    B2 = np.zeros((N, m))
+    B2[:n] = B
+    B2[:n, ic] = 0.0
+    B2[n, ic] = 1.0                            # z_1 <- x_r(k)
+    C2 = np.zeros((p, N))
+    C2[:, :n] = C
+    C2[:, n + d - 1] = D[:, ic]
+    D2 = D.copy()
+    D2[:, ic] = 0.0
+    ie = model.output_index("error", axis)
+    if ie is not None:                          # e = x_r(k) - x: correct the fitted e' = x_r(k-d) - x
+        C2[ie, n + d - 1] -= 1.0
+        D2[ie, ic] += 1.0
+    out = DriveModel(Ts=model.Ts, A=A2, B=B2, C=C2, D=D2, inputs=model.inputs, outputs=model.outputs,
+                     method=model.method, poles=model.poles, identification=model.identification,
+                     metrics=model.metrics, effects=model.effects, provenance=model.provenance)
+    return out
+
+
+# --------------------------------------------------------------------------- effects
+def _friction_input(recipe, axis):
+    for s in recipe.inputs:
+        if s.kind == "friction" and s.axis == axis:
+            return s
+    return None
+
+
+def _force_path_masks(recipe, axis, new_name, outputs=None):
+    """Masks for a force-like input: those of the axis's friction input (thesis: the disturbance
+    path), or s^(n-1)..s^1 when the model has no friction input."""
+    fr = _friction_input(recipe, axis)
+    n = recipe.order
+    out = {}
+    for o in recipe.outputs:
+        if o.axis != axis or (outputs is not None and o.name not in outputs):
+            continue
+        if fr is not None and (o.name, fr.name) in recipe.masks:
+            out[(o.name, new_name)] = recipe.masks[(o.name, fr.name)]
+        else:
+            out[(o.name, new_name)] = frozenset(range(1, n))
+    return out
+
+
+def _unique(recipe, name):
+    names = set(recipe.input_names())
+    base, k = name, 2
+    while name in names:
+        name = f"{base}_{k}"
+        k += 1
+    return name
+
+
+def add_feature(recipe: Recipe, axis, function, params, kind, effect_params, name=None):
+    """Recipe with a feature input on the axis's force path (Stribeck, asymmetry, periodic)."""
+    r = recipe.copy()
+    nm = _unique(r, name or f"{axis}_{function}")
+    spec = InputSpec("feature", axis, params={"function": function, **params}, name=nm)
+    r.inputs.append(spec)
+    r.masks.update(_force_path_masks(r, axis, nm))
+    for o in r.outputs:      # outputs of other axes: no path
+        if o.axis != axis:
+            r.masks[(o.name, nm)] = frozenset()
+    if kind:
+        r.effects.append({"kind": kind, "axis": axis, **effect_params})
+    return r
+
+
+def add_stribeck(recipe, axis, v_s):
+    vt = recipe.v_tilde.get(axis, max(1e-3, v_s / 10))
+    return add_feature(recipe, axis, "stribeck", {"v_tilde": vt, "v_s": float(v_s), "source": "position"},
+                       "stribeck", {"v_s_mm_s": float(v_s), "v_tilde_mm_s": vt}, name=f"{axis}_stribeck")
+
+
+def add_asymmetry(recipe, axis):
+    vt = recipe.v_tilde.get(axis, 1.0)
+    return add_feature(recipe, axis, "abs_sat", {"v_tilde": vt, "source": "position"},
+                       "asymmetric_friction", {"v_tilde_mm_s": vt}, name=f"{axis}_asym")
+
+
+def add_periodic(recipe, axis, period_mm):
+    r = add_feature(recipe, axis, "sin_position", {"period_mm": float(period_mm), "source": "position"},
+                    None, {}, name=f"{axis}_sin")
+    r = add_feature(r, axis, "cos_position", {"period_mm": float(period_mm), "source": "position"},
+                    None, {}, name=f"{axis}_cos")
+    r.effects.append({"kind": "periodic_position", "axis": axis, "period_mm": float(period_mm),
+                      "inputs": [r.inputs[-2].name, r.inputs[-1].name]})
+    return r
+
+
+def add_backlash(recipe, axis, v_b):
+    """Feature sat(v / v_b) on a tool-side output (added if missing), none on the motor side."""
+    r = recipe.copy()
+    n = r.order
+    tool = [o for o in r.outputs if o.axis == axis and o.kind in ("tool_error", "tool_position")]
+    if not tool:
+        ref = next((o for o in r.outputs if o.axis == axis and o.kind == "error"), None)
+        if ref is None:
+            raise InputError(f"backlash needs a fitted tracking-error output of axis '{axis}'", column="backlash")
+        to = OutputSpec("tool_error", axis)
+        r.outputs.append(to)
+        for s in r.inputs:
+            if (ref.name, s.name) in r.masks:
+                r.masks[(to.name, s.name)] = r.masks[(ref.name, s.name)]
+        tool = [to]
+    nm = _unique(r, f"{axis}_backlash")
+    r.inputs.append(InputSpec("feature", axis, params={"function": "sat", "v_tilde": float(v_b),
+                                                      "source": "position"}, name=nm))
+    for o in r.outputs:
+        r.masks[(o.name, nm)] = frozenset(range(0, n + 1)) if o in tool else frozenset()
+    r.effects.append({"kind": "backlash", "axis": axis, "v_b_mm_s": float(v_b), "input": nm,
+                      "output": tool[0].name})
+    return r
+
+
+def add_external(recipe, axis, channel, kind, effect_params, powers=None):
+    """External input from a trace channel with its own numerator on the axis's outputs."""
+    r = recipe.copy()
+    n = r.order
+    nm = _unique(r, str(channel))
+    r.inputs.append(InputSpec("external", axis, channel=channel, name=nm))
+    pw = frozenset(range(0, n + 1)) if powers is None else frozenset(powers)
+    for o in r.outputs:
+        r.masks[(o.name, nm)] = pw if o.axis == axis else frozenset()
+    r.effects.append({"kind": kind, "axis": axis, "channel": channel, "input": nm, **effect_params})
+    return r
+
+
+def add_mode(recipe, axis, frequency_hz, rel=0.15, zeta=(0.005, 0.5)):
+    """One more complex pair, searched in frequency_hz / (1 + rel) .. x (1 + rel)."""
+    r = recipe.copy()
+    n_old = r.order
+    r.new_pairs.append((frequency_hz / (1 + rel), frequency_hz * (1 + rel), zeta[0], zeta[1]))
+    n_new = r.order
+    r.masks = {k: _shift_mask(v, n_old, n_new) for k, v in r.masks.items()}
+    r.effects.append({"kind": "mode", "axis": axis, "detected_hz": float(frequency_hz)})
+    return r
+
+
+def add_delay(recipe, axis, samples):
+    r = recipe.copy()
+    r.delays[axis] = int(r.delays.get(axis, 0)) + int(samples)
+    r.effects.append({"kind": "delay", "axis": axis, "samples": int(r.delays[axis])})
+    return r
+
+
+def describe_fitted(model: DriveModel, effect: dict) -> dict:
+    """Effect parameters read back from the fitted model (frequency / damping of a mode,
+    numerator ratios of friction features to the Coulomb path)."""
+    e = dict(effect)
+    ident = model.identification
+    nums = ident.get("numerators", {})
+    if e["kind"] == "mode":
+        pairs = [tuple(c) for c in ident.get("complex_hz_zeta", [])]
+        if pairs:
+            f0 = e.get("detected_hz", pairs[-1][0])
+            w, z = min(pairs, key=lambda c: abs(np.log(c[0] / f0)))
+            e["frequency_hz"], e["damping"] = float(w), float(z)
+    if e["kind"] in ("stribeck", "asymmetric_friction"):
+        name = {"stribeck": f"{e['axis']}_stribeck", "asymmetric_friction": f"{e['axis']}_asym"}[e["kind"]]
+        ratio = _ratio_to_friction(model, e["axis"], name, nums)
+        if ratio is not None:
+            e["ratio_to_coulomb"] = ratio
+    if e["kind"] == "backlash":
+        key = f"{e['output']}|{e['input']}"
+        b = nums.get(key)
+        a = ident.get("denominator")
+        if b is not None and a is not None:
+            e["backlash_mm"] = float(abs(2.0 * b[-1] / a[-1]))   # d.c. offset = -b/2 per direction
+    if e["kind"] == "periodic_position":
+        amp = _periodic_amplitude(model, e)
+        if amp is not None:
+            e["ratio_to_coulomb"] = amp
+    return e
+
+
+def _ratio_to_friction(model, axis, name, nums):
+    fr = model.input_index("friction", axis)
+    if fr is None:
+        return None
+    fname = model.inputs[fr].name
+    for key, b in nums.items():
+        o, i = key.split("|", 1)
+        if i != fname:
+            continue
+        bf = np.asarray(b)
+        bs = np.asarray(nums.get(f"{o}|{name}", []))
+        if bs.size != bf.size:
+            continue
+        nz = np.flatnonzero(np.abs(bf) > 0)
+        if nz.size:
+            l = nz[-1]
+            return float(bs[l] / bf[l])
+    return None
+
+
+def _periodic_amplitude(model, e):
+    """Force amplitude of the periodic input relative to the Coulomb level (hypot of the sin and
+    cos numerator terms over the friction path's term: F_periodic / F_coulomb)."""
+    ins = e.get("inputs", [])
+    if len(ins) != 2:
+        return None
+    nums = model.identification.get("numerators", {})
+    rs = _ratio_to_friction(model, e["axis"], ins[0], nums)
+    rc = _ratio_to_friction(model, e["axis"], ins[1], nums)
+    if rs is None or rc is None:
+        return None
+    return float(np.hypot(rs, rc))

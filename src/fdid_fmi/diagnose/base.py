@@ -1,0 +1,117 @@
+"""What every detector returns: a :class:`Candidate` (evidence, estimated parameters, the
+augmented recipe to refit), and the :class:`Context` the detectors read.
+
+Evidence is one statistic compared with a threshold; the thresholds were calibrated on clean
+virtual-drive runs (``examples/diagnose_calibrate.py`` reproduces the numbers quoted in each
+detector's docstring): each threshold is set above the largest value seen on clean data, with
+margin, so that a clean model passes no gate. A gate only decides which effects are *tried*: the
+held-out criterion of :mod:`.loop` decides what is kept.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class Candidate:
+    """An effect a detector proposes.
+
+    Attributes
+    ----------
+    kind : effect kind (``stribeck``, ``asymmetric_friction``, ``backlash``, ``mode``, ``delay``,
+           ``periodic_position``, ``coupling``, ``extra_input``)
+    axis : axis it belongs to
+    statistic, threshold : evidence; ``detected = statistic >= threshold``
+    params : estimated parameters (e.g. ``frequency_hz``, ``samples``, ``period_mm``, ``channel``)
+    recipe : augmented :class:`~.augment.Recipe` to refit (None when not detected)
+    search : refit search of the engine for this effect (``local`` or ``wide``)
+    evidence : further numbers for the report
+    plot : data for a figure of the evidence (dict of arrays), optional
+    """
+
+    kind: str
+    axis: str
+    statistic: float
+    threshold: float
+    params: dict = field(default_factory=dict)
+    recipe: object = None
+    search: str = "local"
+    evidence: dict = field(default_factory=dict)
+    plot: dict = field(default_factory=dict)
+    note: str = ""
+
+    @property
+    def detected(self):
+        return bool(np.isfinite(self.statistic) and self.statistic >= self.threshold)
+
+    def summary(self):
+        return {"kind": self.kind, "axis": self.axis, "statistic": float(self.statistic),
+                "threshold": float(self.threshold), "detected": self.detected,
+                "params": self.params, "evidence": self.evidence, "note": self.note}
+
+
+@dataclass
+class Context:
+    """Inputs of the detectors.
+
+    model : current DriveModel; recipe : its Recipe; train : list of training traces whose
+    ``vel`` role is the model's free-run velocity (for refits); res : Residuals of the model on
+    each training trace; settings : dict (``maxiter``, ``exclude`` channels, ``max_delay``)
+    """
+
+    model: object
+    recipe: object
+    train: list
+    res: list
+    settings: dict = field(default_factory=dict)
+
+    @property
+    def Ts(self):
+        return self.model.Ts
+
+
+def command_velocity(cmd, Ts):
+    """Commanded velocity (mm/s), central differences."""
+    return np.gradient(np.asarray(cmd, float), Ts)
+
+
+def motion_events(cmd, Ts, frac=0.02):
+    """Starts, stops and reversals of the commanded motion.
+
+    Returns
+    -------
+    list of (k, kind, direction): kind ``start`` (from rest or a reversal: direction of the new
+    motion) or ``stop`` (direction of the motion that ended); |v_cmd| > frac * max|v_cmd| is moving.
+    """
+    v = command_velocity(cmd, Ts)
+    vmax = float(np.max(np.abs(v))) if v.size else 0.0
+    if vmax <= 0:
+        return []
+    s = np.where(np.abs(v) > frac * vmax, np.sign(v), 0.0)
+    ev = []
+    for k in np.flatnonzero(np.diff(s) != 0) + 1:
+        if s[k - 1] != 0:
+            ev.append((int(k), "stop", float(s[k - 1])))
+        if s[k] != 0:
+            ev.append((int(k), "start", float(s[k])))
+    return ev
+
+
+def scan_refine(f, xs):
+    """Minimise f over the grid xs, then a parabola through the best point and its neighbours."""
+    vals = np.array([f(x) for x in xs])
+    k = int(np.argmin(vals))
+    best = float(xs[k])
+    if 0 < k < len(xs) - 1:
+        x0, x1, x2 = xs[k - 1], xs[k], xs[k + 1]
+        y0, y1, y2 = vals[k - 1], vals[k], vals[k + 1]
+        den = (x0 - x1) * (x0 - x2) * (x1 - x2)
+        A = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / den
+        B = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / den
+        if A > 0:
+            xv = -B / (2 * A)
+            if x0 < xv < x2:
+                best = float(xv)
+    return best, vals

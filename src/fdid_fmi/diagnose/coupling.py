@@ -1,0 +1,118 @@
+"""Coupling to another axis's motion or to an available but unused channel (e.g. EMPS ``pulses_N``).
+
+Candidates: the commanded position of every other axis of the trace (kind ``coupling``) and every
+extra channel the model does not use (kind ``extra_input``), minus ``settings["exclude"]``.
+
+Exogeneity: a channel that follows this axis's own command (a controller output, a motor current,
+a derived velocity) is a loop signal, not an input: using it would feed the measurement back into
+the model. A channel is skipped when the command's regressors (x_r, v, a, j) explain more than
+``MAX_FOLLOW`` of its variance (R^2), and the report says so.
+
+Statistic: R^2 of the residual on the candidate's regressors phi_l = s^(n-l)/P(s) c (the same
+Tustin filters, with the model's own denominator P, that the refit uses; for another axis's
+position all terms but the d.c. one), i.e. the multiple correlation of the residual with the
+candidate signal as the model would carry it.
+
+Threshold ``R2`` (calibration on clean virtual-drive runs, ``examples/diagnose_calibrate.py``):
+an independent axis's command explains at most about 3 % of a clean residual.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..identify import regressors as rg
+from . import augment as ag
+from .base import Candidate
+
+R2 = 0.15
+MAX_FOLLOW = 0.9
+
+
+def _fit_r2(y, X):
+    X = np.column_stack([X, np.ones(len(y))])
+    scale = np.maximum(np.max(np.abs(X), axis=0), 1e-300)
+    Xs = X / scale
+    th, *_ = np.linalg.lstsq(Xs, y, rcond=None)
+    e = y - Xs @ th
+    yc = y - np.mean(y)
+    return 1.0 - float(e @ e) / max(float(yc @ yc), 1e-300)
+
+
+def _regressors(c, a_poly, Ts, ls):
+    den, F = rg.tustin_basis(np.asarray(a_poly, float), Ts)
+    n = len(a_poly) - 1
+    W = np.asarray(c, float)[None, :]
+    r = rg.allpole_filter(den, W - W[:, :1], np.zeros(1), np.zeros(1))[0]
+    N = r.size - n
+    out = np.zeros((N, len(ls)))
+    for c, l in enumerate(ls):           # phi_l[k] = sum_j F[l, j] r[k - j]
+        for j in range(n + 1):
+            out[:, c] += F[l, j] * r[n - j: n - j + N]
+    return out
+
+
+def _follows_command(c, cmd, Ts):
+    v = np.gradient(cmd, Ts)
+    acc = np.gradient(v, Ts)
+    jerk = np.gradient(acc, Ts)
+    return _fit_r2(np.asarray(c, float), np.column_stack([cmd, v, acc, jerk, np.sign(v)]))
+
+
+def candidates(trace, model, exclude=()):
+    """[(channel, kind, source axis or None)] not used by the model."""
+    used = {p.params.get("channel") for p in model.inputs if p.kind == "external"}
+    out = []
+    for b in trace.axes:
+        if b in model.axes or not trace.has(b, "cmd"):
+            continue
+        ch = trace.roles[b]["cmd"]
+        if ch not in used and ch not in exclude:
+            out.append((ch, "coupling", b))
+    for ch in trace.extra_channels:
+        if ch in used or ch in exclude or ch.endswith("_vel_model"):
+            continue
+        out.append((ch, "extra_input", None))
+    return out
+
+
+def detect(ctx):
+    out = []
+    a_poly = ctx.model.identification.get("denominator")
+    if a_poly is None:
+        return out
+    n = len(a_poly) - 1
+    exclude = set(ctx.settings.get("exclude", ()))
+    tr0 = ctx.res[0].trace
+    for a in ctx.model.axes:
+        for ch, kind, src in candidates(tr0, ctx.model, exclude):
+            ys, Xs, follow = [], [], []
+            ls = list(range(0, n)) if kind == "coupling" else list(range(0, n + 1))
+            for res in ctx.res:
+                c = res.trace.extra(ch) if ch in res.trace.channels else None
+                if c is None:
+                    break
+                if np.ptp(c) <= 0:
+                    break
+                ar = res.axes[a]
+                follow.append(_follows_command(c, ar.cmd, ctx.Ts))
+                ys.append(ar.residual - np.mean(ar.residual))
+                Xs.append(_regressors(c, a_poly, ctx.Ts, ls))
+            if not ys:
+                continue
+            f = float(max(follow))
+            r2 = _fit_r2(np.concatenate(ys), np.concatenate(Xs))
+            params = {"channel": ch}
+            if src:
+                params["source_axis"] = src
+            cand = Candidate(kind, a, r2, R2, params=params, evidence={"follows_command_r2": f},
+                             note=f"R^2 of the residual on the filtered channel '{ch}'")
+            if f > MAX_FOLLOW:
+                cand.threshold = float("inf")
+                cand.note += (f"; skipped: the axis command explains {f:.0%} of it (a loop signal, "
+                              f"not an independent input)")
+            if cand.detected:
+                powers = [n - l for l in ls]
+                extra = {"source_axis": src} if src else {}
+                cand.recipe = ag.add_external(ctx.recipe, a, ch, kind, extra, powers=powers)
+            out.append(cand)
+    return out

@@ -1,0 +1,139 @@
+"""Friction at velocity reversals beyond the model's: Stribeck, asymmetric Coulomb, backlash.
+
+Events are the starts, stops and reversals of the commanded motion (:func:`.base.motion_events`).
+
+Stribeck (breakaway above Coulomb)
+    Statistic: concentration of the residual energy in short windows (``WINDOW_S``) after each
+    start / stop, mean(r^2 in windows) / mean(r^2 elsewhere). A breakaway force acts at low
+    speed only, so its residual sits at the ends of each move; white-ish noise gives ~1.
+    Parameter v_s (mm/s): the Stribeck velocity minimising the LS objective of a quick refit (poles
+    in a local window), over a 7-point log grid from 2 v_tilde to 0.2 max|v|, parabola-refined.
+Asymmetric Coulomb
+    Statistic: |t| of the direction-independent mean residual over the event windows (a friction
+    level that differs by direction acts as a force that does not change sign at a reversal):
+    t = mean(m_e) / (std(m_e) / sqrt(n_e)), m_e = mean residual in the window of event e.
+Backlash / lost motion (needs a tool-side channel)
+    Statistic: |t| of the direction-aligned mean tool-side residual while moving, over moves:
+    m_e = s_e * mean(r_tool over move e); lost motion b shows as m_e = -b/2 on every move.
+    Parameter: b = 2 |mean(m_e)| (mm).
+
+Thresholds (calibration on clean virtual-drive runs, see ``examples/diagnose_calibrate.py``):
+the largest clean values were about 1.5 (concentration), 2.2 (|t| asymmetry) and 3 (|t| tool side,
+drive with a rigid tool channel); the thresholds are ``STRIBECK_RATIO``, ``ASYM_T``, ``BACKLASH_T``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import augment as ag
+from .base import Candidate, command_velocity, motion_events, scan_refine
+
+WINDOW_S = 0.04
+STRIBECK_RATIO = 2.0
+ASYM_T = 4.0
+BACKLASH_T = 5.0
+
+
+def _windows(events, n, w):
+    mask = np.zeros(n, bool)
+    for k, _, _ in events:
+        mask[k:min(n, k + w)] = True
+    return mask
+
+
+def detect(ctx):
+    out = []
+    for a in ctx.model.axes:
+        out.extend(_detect_axis(ctx, a))
+    return out
+
+
+def _detect_axis(ctx, a):
+    Ts = ctx.Ts
+    w = max(3, int(round(WINDOW_S / Ts)))
+    num, den, means_even, n_in = 0.0, 0.0, [], 0
+    tool_m, have_tool = [], False
+    for res in ctx.res:
+        ar = res.axes[a]
+        r = ar.residual
+        ev = motion_events(ar.cmd, Ts)
+        win = _windows(ev, r.size, w)
+        if win.any() and (~win).any():
+            num += float(np.sum(r[win] ** 2))
+            n_in += int(win.sum())
+            den += float(np.mean(r[~win] ** 2))
+        for k, kind, s in ev:
+            seg = r[k:min(r.size, k + w)]
+            if seg.size:
+                means_even.append(float(np.mean(seg)))
+        if ar.tool_residual is not None:
+            have_tool = True
+            v = command_velocity(ar.cmd, Ts)
+            moving = np.abs(v) > 0.02 * np.max(np.abs(v))
+            starts = [k for k, kind, _ in ev if kind == "start"]
+            for i, k in enumerate(starts):
+                stop = starts[i + 1] if i + 1 < len(starts) else r.size
+                seg = np.arange(k, stop)
+                seg = seg[moving[seg]]
+                if seg.size > w:
+                    s = np.sign(np.median(v[seg]))
+                    tool_m.append(float(s * np.mean(ar.tool_residual[seg])))
+    cands = []
+    ratio = (num / max(n_in, 1)) / den if den > 0 else 0.0
+    cand = Candidate("stribeck", a, ratio, STRIBECK_RATIO,
+                     evidence={"window_s": WINDOW_S, "events": len(means_even)},
+                     note="residual energy in the 40 ms after motion starts/stops over the rest")
+    if cand.detected:
+        cand.params["v_s_mm_s"] = _best_vs(ctx, a)
+        cand.recipe = ag.add_stribeck(ctx.recipe, a, cand.params["v_s_mm_s"])
+    cands.append(cand)
+
+    me = np.array(means_even)
+    t_even = _t(me)
+    cand = Candidate("asymmetric_friction", a, abs(t_even), ASYM_T,
+                     params={"mean_offset_um": float(np.mean(me) * 1e3) if me.size else 0.0},
+                     note="|t| of the direction-independent mean residual after starts/stops")
+    if cand.detected and ctx.model.input_index("friction", a) is not None:
+        cand.recipe = ag.add_asymmetry(ctx.recipe, a)
+    elif cand.detected:
+        cand.note += " (the model has no friction input: not tried)"
+    cands.append(cand)
+
+    if have_tool:
+        tm = np.array(tool_m)
+        t_tool = _t(tm)
+        b = 2.0 * abs(float(np.mean(tm))) if tm.size else 0.0
+        cand = Candidate("backlash", a, abs(t_tool), BACKLASH_T, params={"backlash_mm": b},
+                         evidence={"moves": int(tm.size)},
+                         note="|t| of the direction-aligned tool-side offset over moves")
+        if cand.detected:
+            vt = ctx.recipe.v_tilde.get(a, 1.0)
+            cand.recipe = ag.add_backlash(ctx.recipe, a, vt)
+        cands.append(cand)
+    return cands
+
+
+def _t(x):
+    x = np.asarray(x, float)
+    if x.size < 3:
+        return 0.0
+    sd = float(np.std(x, ddof=1))
+    return float(np.mean(x) / (sd / np.sqrt(x.size))) if sd > 0 else 0.0
+
+
+def _best_vs(ctx, a):
+    """Stribeck velocity (mm/s) minimising the LS objective with the poles fixed."""
+    vt = ctx.recipe.v_tilde.get(a, 0.1)
+    vmax = max(float(np.max(np.abs(command_velocity(r.axes[a].cmd, ctx.Ts)))) for r in ctx.res)
+    lo, hi = max(2 * vt, 1e-3 * vmax), 0.2 * vmax
+    if not hi > lo:
+        return float(lo)
+    xs = np.linspace(np.log10(lo), np.log10(hi), 7)
+
+    def J(lx):
+        m = ag.fit(ag.add_stribeck(ctx.recipe, a, 10 ** lx), ctx.train, search="local", maxiter=10,
+                   refine=False)
+        return m.metrics["objective_scaled_rms"]
+
+    best, _ = scan_refine(J, xs)
+    return float(10 ** best)

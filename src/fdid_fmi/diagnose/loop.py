@@ -1,0 +1,245 @@
+"""The diagnosis loop: residual -> detectors -> augment -> refit -> keep only what helps held out.
+
+Each round:
+
+1. free-run residuals of the current model on the training and held-out traces;
+2. every detector proposes candidates; those whose statistic passes its calibrated threshold
+   are refitted on the training data (:func:`.augment.fit`, poles in a local window, or the
+   engine's default space for a dead time); the same refit without any new effect (the "null
+   refit") is the reference, so a better pole fit is never credited to an effect;
+3. candidates are tried in order of their training improvement; the first one that meets the
+   KEEP CRITERION on the held-out trace is kept, and the next round starts from it.
+
+Keep criterion: on the held-out trace, the RMS residual of some scored channel (each axis's
+position, and its tool side when measured) falls by at least ``min_gain`` (default 5 %) relative
+to the better of the current model and the null refit, and no scored channel rises by more than
+``max_loss`` (default 1 %). The loop stops when no candidate is detected or none is kept, or after
+``max_steps`` effects.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..model import DriveModel
+from . import augment as ag
+from . import coupling, delay, friction, mode, periodic, whiteness
+from .base import Context, command_velocity
+from .residuals import Residuals, residuals, split_halves
+
+DETECTORS = {"friction": friction, "mode": mode, "delay": delay, "periodic": periodic,
+             "coupling": coupling}
+
+
+@dataclass
+class Step:
+    """One kept effect."""
+
+    effect: dict
+    model: DriveModel
+    before: dict            # {"train"|"val": {channel: {rms_um, max_um}}}
+    after: dict
+    residual_before: dict   # {"train"|"val": Residuals}
+    residual_after: dict
+    candidates: list        # summaries of every candidate of the round
+
+
+@dataclass
+class Diagnosis:
+    """Result of :func:`diagnose`."""
+
+    model: DriveModel               # the given model
+    final: DriveModel               # with every kept effect
+    train: object
+    val: object
+    steps: list = field(default_factory=list)
+    rounds: list = field(default_factory=list)      # per round: candidates and trials
+    before: dict = field(default_factory=dict)
+    after: dict = field(default_factory=dict)
+    residual_before: dict = field(default_factory=dict)
+    residual_after: dict = field(default_factory=dict)
+    tests_before: dict = field(default_factory=dict)
+    tests_after: dict = field(default_factory=dict)
+    settings: dict = field(default_factory=dict)
+    wall_time_s: float = 0.0
+    split: str = ""
+
+    @property
+    def effects_added(self):
+        return [s.effect for s in self.steps]
+
+    def to_json(self):
+        """The JSON summary (``effects_added``, ``before`` / ``after`` per trace and axis)."""
+        from ..model import _jsonable
+        return _jsonable({
+            "effects_added": self.effects_added,
+            "before": _per_axis(self.before), "after": _per_axis(self.after),
+            "steps": [{"effect": s.effect, "before": _per_axis(s.before), "after": _per_axis(s.after),
+                       "candidates": s.candidates} for s in self.steps],
+            "rounds": self.rounds,
+            "tests": {"before": self.tests_before, "after": self.tests_after},
+            "criterion": {"min_gain": self.settings.get("min_gain"), "max_loss": self.settings.get("max_loss")},
+            "split": self.split, "wall_time_s": self.wall_time_s,
+        })
+
+
+def _per_axis(table):
+    """{trace: {axis: {rms_um, max_um, tool: {...}}}} from {trace: {channel: ...}}."""
+    out = {}
+    for tname, chans in table.items():
+        d = {}
+        for ch, v in chans.items():
+            if "." in ch:
+                ax, sub = ch.split(".", 1)
+                d.setdefault(ax, {})[sub] = dict(v)
+            else:
+                d.setdefault(ch, {}).update(v)
+        out[tname] = d
+    return out
+
+
+def _tests(res: Residuals):
+    out = {}
+    for a, ar in res.axes.items():
+        out[a] = whiteness.summary(whiteness.correlation_tests(ar.residual, command_velocity(ar.cmd, res.trace.Ts)))
+    return out
+
+
+def _already(recipe, cand):
+    """An effect of this kind is already in the model for this axis (a mode or an input channel
+    may be added again when it is a different one)."""
+    for e in recipe.effects:
+        if e.get("kind") != cand.kind or e.get("axis") != cand.axis:
+            continue
+        if cand.kind in ("coupling", "extra_input"):
+            if e.get("channel") == cand.params.get("channel"):
+                return True
+        elif cand.kind == "mode":
+            f = e.get("frequency_hz", e.get("detected_hz"))
+            if f and abs(cand.params.get("peak_hz", 0) / f - 1) < 0.15:
+                return True
+        else:
+            return True
+    return False
+
+
+def _gain(ref, new):
+    """Relative RMS reduction per channel (positive = better)."""
+    return {ch: 1.0 - new[ch]["rms_um"] / ref[ch]["rms_um"] if ref[ch]["rms_um"] > 0 else 0.0
+            for ch in ref if ch in new}
+
+
+def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, max_loss=0.01,
+             max_steps=4, maxiter=25, exclude=(), max_delay=8, progress=None) -> Diagnosis:
+    """Find what the residual says the model lacks, add it, and report the error before and after.
+
+    Parameters
+    ----------
+    model : DriveModel from the pole search (``identify_siso`` / ``identify_mimo``)
+    train : Trace, measured data the effects are fitted on
+    val : Trace, held-out data the keep criterion is judged on. Default: ``train`` is split in
+        halves, the first to fit, the second held out.
+    detectors : names from DETECTORS to run (default all)
+    min_gain, max_loss : keep criterion (module docstring)
+    max_steps : at most this many effects added
+    maxiter : DE iterations of each refit
+    exclude : channel names never used as inputs
+    max_delay : largest dead time tried (samples)
+    progress : callable(str) for progress messages, optional
+
+    Returns
+    -------
+    Diagnosis
+    """
+    t0 = time.perf_counter()
+    say = progress or (lambda msg: None)
+    split = ""
+    if val is None:
+        train, val = split_halves(train)
+        split = "no held-out trace given: first half fitted, second half held out"
+    for tr in (train, val):
+        if abs(tr.Ts - model.Ts) > 1e-3 * model.Ts:
+            raise InputError(f"trace sampled at {tr.Ts:g} s, model at {model.Ts:g} s", source=tr.source,
+                             column="Ts")
+    names = list(detectors or DETECTORS)
+    for nm in names:
+        if nm not in DETECTORS:
+            raise InputError(f"unknown detector '{nm}'; choose from {sorted(DETECTORS)}", column="detectors")
+    settings = {"min_gain": min_gain, "max_loss": max_loss, "max_steps": max_steps, "maxiter": maxiter,
+                "exclude": list(exclude), "max_delay": max_delay, "detectors": names}
+    recipe = ag.recipe_from_model(model)
+    current = model
+    res0 = {"train": residuals(model, train), "val": residuals(model, val)}
+    diag = Diagnosis(model=model, final=model, train=train, val=val, settings=settings, split=split)
+    diag.before = {k: r.table() for k, r in res0.items()}
+    diag.residual_before = res0
+    diag.tests_before = {k: _tests(r) for k, r in res0.items()}
+    res_cur = res0
+    for step in range(max_steps):
+        tab_cur = {k: r.table() for k, r in res_cur.items()}
+        vel_train = ag.model_velocity_traces(current, [train])
+        ctx = Context(model=current, recipe=recipe, train=vel_train, res=[res_cur["train"]],
+                      settings=settings)
+        cands = []
+        for nm in names:
+            say(f"round {step + 1}: detector {nm}")
+            cands.extend(DETECTORS[nm].detect(ctx))
+        detected = [c for c in cands if c.detected and c.recipe is not None and not _already(recipe, c)]
+        rnd = {"round": step + 1, "candidates": [c.summary() for c in cands], "trials": []}
+        diag.rounds.append(rnd)
+        if not detected:
+            say(f"round {step + 1}: nothing detected")
+            break
+        say(f"round {step + 1}: null refit")
+        null = ag.fit(recipe, vel_train, search="local", maxiter=maxiter)
+        tab_null = {"train": residuals(null, train).table(), "val": residuals(null, val).table()}
+        ref_val = {ch: min(tab_cur["val"][ch], tab_null["val"][ch], key=lambda v: v["rms_um"])
+                   for ch in tab_cur["val"]}
+        ref_train = {ch: min(tab_cur["train"][ch], tab_null["train"][ch], key=lambda v: v["rms_um"])
+                     for ch in tab_cur["train"]}
+        trials = []
+        for c in detected:
+            say(f"round {step + 1}: refit with {c.kind} {c.params}")
+            try:
+                m = ag.fit(c.recipe, vel_train, search=c.search, maxiter=maxiter)
+            except InputError as exc:
+                rnd["trials"].append({"kind": c.kind, "params": c.params, "error": str(exc)})
+                continue
+            rt, rv = residuals(m, train), residuals(m, val)
+            tt, tv = rt.table(), rv.table()
+            g_train, g_val = _gain(ref_train, tt), _gain(ref_val, tv)
+            keep = max(g_val.values()) >= min_gain and min(g_val.values()) >= -max_loss
+            trials.append((max(g_train.values()), c, m, rt, rv, keep))
+            rnd["trials"].append({"kind": c.kind, "params": c.params,
+                                  "gain_train": g_train, "gain_val": g_val, "kept": False,
+                                  "criterion_met": bool(keep)})
+        trials.sort(key=lambda x: -x[0])
+        chosen = next((t for t in trials if t[5]), None)
+        if chosen is None:
+            say(f"round {step + 1}: no candidate met the keep criterion")
+            break
+        _, c, m, rt, rv, _ = chosen
+        for tr_ in rnd["trials"]:
+            if tr_.get("kind") == c.kind and tr_.get("params") == c.params:
+                tr_["kept"] = True
+        effect = ag.describe_fitted(m, m.effects[-1])
+        effect.update({k: v for k, v in c.params.items() if k not in effect})
+        m.effects[-1] = effect
+        res_new = {"train": rt, "val": rv}
+        diag.steps.append(Step(effect=effect, model=m, before=tab_cur,
+                               after={k: r.table() for k, r in res_new.items()},
+                               residual_before=res_cur, residual_after=res_new,
+                               candidates=[x.summary() for x in cands]))
+        say(f"round {step + 1}: kept {effect['kind']}")
+        recipe = ag.updated_recipe(c.recipe, m)
+        recipe.effects = list(m.effects)
+        current, res_cur = m, res_new
+    diag.final = current
+    diag.after = {k: r.table() for k, r in res_cur.items()}
+    diag.residual_after = res_cur
+    diag.tests_after = {k: _tests(r) for k, r in res_cur.items()}
+    diag.wall_time_s = time.perf_counter() - t0
+    return diag

@@ -1,0 +1,131 @@
+"""Residuals of a model's free run against measured traces, and the RMS/MAX error table.
+
+Residual = measured - free-run prediction (:func:`fdid_fmi.simulate.simulate`, the semantics the
+FMU implements), in mm, per axis:
+
+``position``  measured ``act`` minus the model's ``position`` output (= minus the residual of
+              the tracking error e = x_r - x, the same RMS);
+``tool``      measured ``tool`` channel (when the trace has one) minus the model's
+              ``tool_position`` output, or minus its ``position`` output when the model has no
+              tool side (a rigid model predicts the tool where the motor is).
+
+Arrays in, arrays out; the traces are not modified.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..metrics import rms_max_um
+from ..simulate import simulate
+from ..trace import Channel, Trace
+
+
+@dataclass
+class AxisResidual:
+    """Measured, predicted and residual signals of one axis (mm, mm/s).
+
+    Attributes
+    ----------
+    axis : str
+    cmd : commanded position x_r
+    measured, predicted, residual : motor-side position and residual = measured - predicted
+    velocity : predicted velocity of the free run (mm/s)
+    tool_measured, tool_predicted, tool_residual : tool side (None without a ``tool`` channel)
+    """
+
+    axis: str
+    cmd: np.ndarray
+    measured: np.ndarray
+    predicted: np.ndarray
+    residual: np.ndarray
+    velocity: np.ndarray
+    tool_measured: np.ndarray | None = None
+    tool_predicted: np.ndarray | None = None
+    tool_residual: np.ndarray | None = None
+
+
+@dataclass
+class Residuals:
+    """Free-run residuals of a model on one trace."""
+
+    trace: Trace
+    t: np.ndarray
+    axes: dict = field(default_factory=dict)     # axis -> AxisResidual
+
+    def channels(self):
+        """Scored channels: ``{"x": residual, "x.tool": tool residual, ...}`` (mm)."""
+        out = {}
+        for a, r in self.axes.items():
+            out[a] = r.residual
+            if r.tool_residual is not None:
+                out[f"{a}.tool"] = r.tool_residual
+        return out
+
+    def table(self):
+        """``{channel: {"rms_um", "max_um"}}`` of the residuals."""
+        return {k: rms_max_um(v) for k, v in self.channels().items()}
+
+
+def residuals(model, trace: Trace) -> Residuals:
+    """Free-run residuals of ``model`` on ``trace`` (see module docstring).
+
+    Raises
+    ------
+    InputError
+        The trace lacks the ``act`` channel of a model axis.
+    """
+    for a in model.axes:
+        if not trace.has(a, "act"):
+            raise InputError(f"needs the measured position ('act') of axis '{a}' to compute a residual",
+                             source=trace.source, column=f"{a}.act")
+    sim = simulate(model, trace)
+    out = Residuals(trace=trace, t=np.asarray(trace.t))
+    for a in model.axes:
+        d = sim.axes[a]
+        meas = np.asarray(trace.act(a), float)
+        ar = AxisResidual(axis=a, cmd=np.asarray(trace.cmd(a), float), measured=meas,
+                          predicted=d["position"], residual=meas - d["position"], velocity=d["velocity"])
+        if trace.has(a, "tool"):
+            tm = np.asarray(trace.get(a, "tool"), float)
+            tp = d.get("tool_position", d["position"])
+            ar.tool_measured, ar.tool_predicted, ar.tool_residual = tm, tp, tm - tp
+        out.axes[a] = ar
+    return out
+
+
+def error_table(model, traces: dict) -> dict:
+    """``{trace label: {channel: {"rms_um", "max_um"}}}`` of the model's free-run residuals."""
+    return {name: residuals(model, tr).table() for name, tr in traces.items()}
+
+
+# ----------------------------------------------------------------------- trace helpers
+def with_channels(trace: Trace, data: dict, source_suffix="") -> Trace:
+    """A copy of ``trace`` with some channels' data replaced (``{channel name: array}``)."""
+    chans = dict(trace.channels)
+    for name, arr in data.items():
+        unit = chans[name].unit if name in chans else "1"
+        chans[name] = Channel(name, unit, np.asarray(arr, float))
+    return Trace(t=trace.t, channels=chans, roles={a: dict(r) for a, r in trace.roles.items()},
+                 source=trace.source + source_suffix, meta=dict(trace.meta), jitter_tol=trace.jitter_tol)
+
+
+def delayed(x, d):
+    """x delayed by d samples (x[k - d]); the first d samples continue the starting ramp."""
+    x = np.asarray(x, float)
+    d = int(d)
+    if d <= 0:
+        return x.copy()
+    out = np.empty_like(x)
+    dx = x[1] - x[0] if x.size > 1 else 0.0
+    out[:d] = x[0] - dx * np.arange(d, 0, -1)
+    out[d:] = x[:-d]
+    return out
+
+
+def split_halves(trace: Trace):
+    """(first half, second half) of a trace, for a held-out check when no validation trace is given."""
+    tm = trace.t[0] + 0.5 * (trace.t[-1] - trace.t[0])
+    return trace.slice(None, tm), trace.slice(tm + 0.5 * trace.Ts, None)
