@@ -4,7 +4,8 @@ Flags: ``-O2 -std=c99 -Wall -Wextra -Werror -fPIC -shared -fvisibility=hidden``;
 fmi2/fmi3 functions are exported (``FMI2_Export``/``FMI3_Export`` in the standard headers).
 ``-lm`` is added only when the model needs sin/cos/exp (feature inputs); models without
 them give a binary with no libm dependency. The win64 DLL is linked with ``-static-libgcc``
-so it needs nothing beyond the Windows C runtime (msvcrt).
+so it needs nothing beyond the Windows C runtime (msvcrt). Binaries are stripped (``-s``);
+the exported fmi* symbols stay in the dynamic symbol table.
 """
 from __future__ import annotations
 
@@ -33,9 +34,9 @@ class Platform:
 
 PLATFORMS = {
     "linux64": Platform("linux64", "linux64", "x86_64-linux", os.environ.get("CC", "gcc"), ".so",
-                        ("-fPIC", "-fvisibility=hidden")),
+                        ("-fPIC", "-fvisibility=hidden", "-s")),
     "win64": Platform("win64", "win64", "x86_64-windows", "x86_64-w64-mingw32-gcc", ".dll",
-                      ("-static-libgcc",)),
+                      ("-static-libgcc", "-s")),
 }
 
 CFLAGS = ("-O2", "-std=c99", "-Wall", "-Wextra", "-Werror")
