@@ -131,3 +131,50 @@ def test_win64_dll_runs_under_wine(setup, tmp_path):
     proc, _ = run_host(exe, s["fmu"], ins, s["outs"], s["model"].Ts, mode="errors", prefix=env_prefix,
                        lib_platform="win64", timeout=300)
     assert proc.returncode == 0 and "errors ok" in proc.stdout, proc.stderr[-2000:]
+
+
+def test_ecos_cli_equals_fmpy(tmp_path):
+    """The ``ecos`` command-line co-simulation engine (shipped in ecospy) runs the FMU with a
+    scenario of command steps; its CSV (6 decimals) equals fmpy's run of the same schedule."""
+    try:
+        import ecospy
+    except (ImportError, OSError) as exc:
+        pytest.skip(f"ecospy is not usable ({exc})")
+    src = Path(ecospy.__file__).parent / "binaries" / "ecos"
+    if not src.is_file():
+        pytest.skip("ecospy ships no ecos executable for this platform")
+    exe = tmp_path / "ecos"
+    shutil.copy(src, exe)
+    exe.chmod(0o755)                      # the wheel installs it without the executable bit
+    probe = subprocess.run([str(exe), "--version"], capture_output=True, text=True)
+    if probe.returncode != 0:
+        pytest.skip(f"the ecos executable does not run here ({probe.stderr.strip()[:200]}; "
+                    f"apt-get install libtbb12)")
+    m = fs.siso_model()
+    fmu = export_fmu(m, tmp_path / "drive.fmu")
+    steps = [(0.05, 0.5), (0.1, -0.25), (0.16, 0.75)]
+    actions = "\n".join(
+        f'  <ecos:action t="{t}"><ecos:variable id="instance::x_x_cmd"><ecos:real value="{v}"/>'
+        f"</ecos:variable></ecos:action>" for t, v in steps)
+    (tmp_path / "scenario.xml").write_text(
+        '<?xml version="1.0" encoding="utf-8"?>\n<ecos:Scenario '
+        'xmlns:ecos="http://github.com/Ecos-platform/libecos/resources/schema/ScenarioConfig">\n'
+        f"{actions}\n</ecos:Scenario>\n")
+    n = 250
+    proc = subprocess.run([str(exe), "simulate", "--path", str(fmu), "--stepSize", repr(m.Ts),
+                           "--stopTime", repr((n + 1) * m.Ts), "--scenarioConfig", str(tmp_path / "scenario.xml")],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    csv = tmp_path / "drive.csv"
+    header = [h.strip() for h in csv.read_text().splitlines()[0].split(",")]
+    data = np.loadtxt(csv, delimiter=",", skiprows=1)
+    col = {h.split("::")[-1].split("[")[0]: i for i, h in enumerate(header)}
+    cmd = np.zeros(n)
+    for t, v in steps:
+        cmd[int(round(t / m.Ts)):] = v
+    ref = run_fmu(fmu, {"x": cmd}, m.Ts, outputs=["x_x", "x_e", "x_v"], read="after")
+    rows = data[1:n + 1]                  # row k+1 = after step k
+    assert np.allclose(rows[:, 1], (np.arange(n) + 1) * m.Ts)
+    for name in ("x_x", "x_e", "x_v"):
+        assert np.abs(rows[:, col[name]] - ref[name]).max() <= 1e-6, name
+    assert np.abs(ref["x_x"]).max() > 0.5       # the steps moved the axis
