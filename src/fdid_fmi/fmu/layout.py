@@ -122,6 +122,10 @@ def check_exportable(model):
     if not isinstance(model, DriveModel):
         raise InputError(f"expected a DriveModel, got {type(model).__name__}", column="model")
     model.validate()
+    for p in model.inputs:
+        if p.kind == "feature" and p.axis not in model.axes:
+            raise InputError("a feature input needs the axis whose velocity/position it uses",
+                             column=p.name)
     fr = [p for p in model.inputs if p.kind == "friction"]
     if len(fr) > 4:
         raise InputError("at most 4 friction inputs are supported", column="friction")
