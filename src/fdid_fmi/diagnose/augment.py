@@ -39,9 +39,11 @@ v_tilde stays at the model's value.
 from __future__ import annotations
 
 import copy
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import LinAlgWarning
 
 from ..errors import InputError
 from ..identify.pole_search import identify_mimo
@@ -227,8 +229,12 @@ def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, r
     bounds = _bounds(recipe, Ts, search)
     if search != "locked":
         bounds = Bounds(bounds.real_hz[:n_real], bounds.omega_hz[:n_cplx], bounds.zeta[:n_cplx], None)
-    model = identify_mimo(shifted_traces(recipe, traces), st, bounds=bounds, v_tilde=dict(recipe.v_tilde),
-                          method="de", seed=seed, maxiter=maxiter, popsize=popsize, refine=refine)
+    with warnings.catch_warnings():   # near-collinear regressors of a candidate: LS still solved
+        warnings.simplefilter("ignore", LinAlgWarning)
+        warnings.simplefilter("ignore", RuntimeWarning)
+        model = identify_mimo(shifted_traces(recipe, traces), st, bounds=bounds,
+                              v_tilde=dict(recipe.v_tilde), method="de", seed=seed, maxiter=maxiter,
+                              popsize=popsize, refine=refine)
     model.method = "pole-search+diagnose"
     for a, d in recipe.delays.items():
         if d:
@@ -360,21 +366,28 @@ def add_periodic(recipe, axis, period_mm):
     return r
 
 
+def add_tool_output(recipe, axis):
+    """Recipe with a fitted tool-side output (tool_error, same inputs and masks as the error)."""
+    r = recipe.copy()
+    if any(o.axis == axis and o.kind in ("tool_error", "tool_position") for o in r.outputs):
+        return r
+    ref = next((o for o in r.outputs if o.axis == axis and o.kind == "error"), None)
+    if ref is None:
+        raise InputError(f"a tool-side output needs a fitted tracking-error output of axis '{axis}'",
+                         column="backlash")
+    to = OutputSpec("tool_error", axis)
+    r.outputs.append(to)
+    for s in r.inputs:
+        if (ref.name, s.name) in r.masks:
+            r.masks[(to.name, s.name)] = r.masks[(ref.name, s.name)]
+    return r
+
+
 def add_backlash(recipe, axis, v_b):
     """Feature sat(v / v_b) on a tool-side output (added if missing), none on the motor side."""
-    r = recipe.copy()
+    r = add_tool_output(recipe, axis)
     n = r.order
     tool = [o for o in r.outputs if o.axis == axis and o.kind in ("tool_error", "tool_position")]
-    if not tool:
-        ref = next((o for o in r.outputs if o.axis == axis and o.kind == "error"), None)
-        if ref is None:
-            raise InputError(f"backlash needs a fitted tracking-error output of axis '{axis}'", column="backlash")
-        to = OutputSpec("tool_error", axis)
-        r.outputs.append(to)
-        for s in r.inputs:
-            if (ref.name, s.name) in r.masks:
-                r.masks[(to.name, s.name)] = r.masks[(ref.name, s.name)]
-        tool = [to]
     nm = _unique(r, f"{axis}_backlash")
     r.inputs.append(InputSpec("feature", axis, params={"function": "sat", "v_tilde": float(v_b),
                                                       "source": "position"}, name=nm))

@@ -29,6 +29,8 @@ class Candidate:
     search : refit search of the engine for this effect (``local`` or ``wide``)
     evidence : further numbers for the report
     plot : data for a figure of the evidence (dict of arrays), optional
+    reference : Recipe, optional -- what the effect must beat besides the current model (e.g. a
+           tool-side output without the backlash feature: the output alone is not backlash)
     """
 
     kind: str
@@ -41,6 +43,7 @@ class Candidate:
     evidence: dict = field(default_factory=dict)
     plot: dict = field(default_factory=dict)
     note: str = ""
+    reference: object = None
 
     @property
     def detected(self):
@@ -115,3 +118,12 @@ def scan_refine(f, xs):
             if x0 < xv < x2:
                 best = float(xv)
     return best, vals
+
+
+def implausible(effect):
+    """Reason a fitted effect is physically implausible, or '' (checked before keeping it)."""
+    if effect.get("kind") == "stribeck" and not effect.get("ratio_to_coulomb", 1.0) > 0:
+        return "the fitted breakaway excess is not positive (not a Stribeck effect)"
+    if effect.get("kind") == "mode" and not effect.get("damping", 0.1) < 1.0:
+        return "the fitted pair is not lightly damped"
+    return ""

@@ -4,24 +4,31 @@ improved by a k-sample shift of the command.
 Evidence 1 (reported): the lag of the peak cross-correlation between the residual and the
 commanded velocity (a measurement that lags by d samples leaves r ~ -d Ts v).
 Evidence 2 (the statistic): the model is refitted (pole search over the engine's default space,
-the dead time moves the poles far) on the command delayed by k = 0..``MAX_DELAY`` samples; J_k is
-the fit objective. k* is the SMALLEST k whose J_k is within ``TIE`` (5 %) of the best: a 3rd-order
-model mimics part of a dead time with its poles, so J_k is flat near its minimum and the smallest
-shift that explains the data is the estimate. Statistic: J_0 / J_k* (1 when no shift helps).
+a dead time moves the poles far) with its command delayed by k = 0..``MAX_DELAY`` samples (a
+delay line in A/B, see augment.py), and each refit's FREE-RUN RMS error on the training trace,
+F_k, is computed. k* = argmin F_k; statistic F_0 / F_k* (1 when no shift helps). The LS objective
+is not used to compare shifts: the 3rd-order model mimics most of a dead time with its poles, the
+LS objective is nearly flat in k, while the free run still shows the shift it needs.
+
+Identifiability: a dead time of d samples is only visible where the command excites frequencies
+at which its phase 2 pi f d Ts differs from what the poles can mimic; on gentle moves
+(2000 mm/s^2, 1e5 mm/s^3) a 3-sample record delay is absorbed (free-run RMS within 1-2 % with and
+without it) and the loop correctly adds nothing.
 
 Threshold ``RATIO`` (calibration on clean virtual-drive runs, ``examples/diagnose_calibrate.py``):
-clean runs give k* = 0 (statistic 1.0) or a ratio below 1.05 by construction of the tie rule.
+clean runs give statistics up to about 1.04.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InputError
 from . import augment as ag
+from .residuals import residuals
 from .base import Candidate, command_velocity
 
-MAX_DELAY = 8
-TIE = 0.05
-RATIO = 1.08
+MAX_DELAY = 6
+RATIO = 1.1
 
 
 def xcorr_lag(r, v, max_lag):
@@ -49,17 +56,20 @@ def detect(ctx):
         J = []
         for k in range(0, kmax + 1):
             rec = ag.add_delay(ctx.recipe, a, k) if k else ctx.recipe
-            m = ag.fit(rec, ctx.train, search="wide", maxiter=maxiter, refine=False)
-            J.append(m.metrics["objective_scaled_rms"])
+            try:
+                m = ag.fit(rec, ctx.train, search="wide", maxiter=maxiter, refine=False)
+            except InputError:
+                J.append(np.inf)
+                continue
+            J.append(np.sqrt(np.mean([residuals(m, tr).table()[a]["rms_um"] ** 2 for tr in ctx.train])))
         J = np.array(J)
-        ok = np.flatnonzero(J <= (1 + TIE) * J.min())
-        k_star = int(ok[0])
-        stat = float(J[0] / J[k_star]) if k_star else 1.0
+        k_star = int(np.argmin(J))
+        stat = float(J[0] / J[k_star]) if k_star and np.isfinite(J[0]) else 1.0
         cand = Candidate("delay", a, stat, RATIO, params={"samples": k_star},
-                         evidence={"objective_by_shift": J.tolist(), "xcorr_peak_lag": int(lag),
+                         evidence={"free_run_rms_um_by_shift": J.tolist(), "xcorr_peak_lag": int(lag),
                                    "xcorr_peak": rho},
                          plot={"shift": np.arange(kmax + 1), "objective": J}, search="wide",
-                         note="fit objective without / with the smallest good command shift")
+                         note="training free-run RMS without / with the best command shift")
         if cand.detected:
             cand.recipe = ag.add_delay(ctx.recipe, a, k_star)
         out.append(cand)

@@ -15,7 +15,9 @@ Asymmetric Coulomb
 Backlash / lost motion (needs a tool-side channel)
     Statistic: |t| of the direction-aligned mean tool-side residual while moving, over moves:
     m_e = s_e * mean(r_tool over move e); lost motion b shows as m_e = -b/2 on every move.
-    Parameter: b = 2 |mean(m_e)| (mm).
+    Parameter: b = 2 |mean(m_e)| (mm). The refit keeps the poles (``locked``): a tool-side output
+    is added with its own numerators (the motor-side fit is unchanged) and must beat the same
+    tool-side output without the backlash input (``reference``).
 
 Thresholds (calibration on clean virtual-drive runs, see ``examples/diagnose_calibrate.py``):
 the largest clean values were about 1.5 (concentration), 2.2 (|t| asymmetry) and 3 (|t| tool side,
@@ -103,12 +105,13 @@ def _detect_axis(ctx, a):
         tm = np.array(tool_m)
         t_tool = _t(tm)
         b = 2.0 * abs(float(np.mean(tm))) if tm.size else 0.0
-        cand = Candidate("backlash", a, abs(t_tool), BACKLASH_T, params={"backlash_mm": b},
+        cand = Candidate("backlash", a, abs(t_tool), BACKLASH_T, params={"backlash_mm": b}, search="locked",
                          evidence={"moves": int(tm.size)},
                          note="|t| of the direction-aligned tool-side offset over moves")
         if cand.detected:
             vt = ctx.recipe.v_tilde.get(a, 1.0)
             cand.recipe = ag.add_backlash(ctx.recipe, a, vt)
+            cand.reference = ag.add_tool_output(ctx.recipe, a)
         cands.append(cand)
     return cands
 

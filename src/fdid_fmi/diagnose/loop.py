@@ -27,7 +27,7 @@ from ..errors import InputError
 from ..model import DriveModel
 from . import augment as ag
 from . import coupling, delay, friction, mode, periodic, whiteness
-from .base import Context, command_velocity
+from .base import Context, command_velocity, implausible
 from .residuals import Residuals, residuals, split_halves
 
 DETECTORS = {"friction": friction, "mode": mode, "delay": delay, "periodic": periodic,
@@ -133,7 +133,7 @@ def _gain(ref, new):
 
 
 def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, max_loss=0.01,
-             max_steps=4, maxiter=25, exclude=(), max_delay=8, progress=None) -> Diagnosis:
+             max_steps=4, maxiter=25, exclude=(), max_delay=6, progress=None) -> Diagnosis:
     """Find what the residual says the model lacks, add it, and report the error before and after.
 
     Parameters
@@ -204,18 +204,28 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         for c in detected:
             say(f"round {step + 1}: refit with {c.kind} {c.params}")
             try:
-                m = ag.fit(c.recipe, vel_train, search=c.search, maxiter=maxiter)
+                m = ag.fit(c.recipe, vel_train, search=c.search, maxiter=maxiter,
+                               refine=c.search != "locked")
             except InputError as exc:
                 rnd["trials"].append({"kind": c.kind, "params": c.params, "error": str(exc)})
                 continue
             rt, rv = residuals(m, train), residuals(m, val)
             tt, tv = rt.table(), rv.table()
-            g_train, g_val = _gain(ref_train, tt), _gain(ref_val, tv)
+            rtr, rva = ref_train, ref_val
+            if c.reference is not None:     # the effect must also beat its reference structure
+                mr = ag.fit(c.reference, vel_train, search=c.search, maxiter=maxiter,
+                               refine=c.search != "locked")
+                t2, v2 = residuals(mr, train).table(), residuals(mr, val).table()
+                rtr = {ch: min(rtr[ch], t2[ch], key=lambda v: v["rms_um"]) for ch in rtr}
+                rva = {ch: min(rva[ch], v2[ch], key=lambda v: v["rms_um"]) for ch in rva}
+            g_train, g_val = _gain(rtr, tt), _gain(rva, tv)
             keep = max(g_val.values()) >= min_gain and min(g_val.values()) >= -max_loss
-            trials.append((max(g_train.values()), c, m, rt, rv, keep))
-            rnd["trials"].append({"kind": c.kind, "params": c.params,
+            effect = ag.describe_fitted(m, m.effects[-1])
+            why = implausible(effect)
+            trials.append((max(g_train.values()), c, m, rt, rv, keep and not why))
+            rnd["trials"].append({"kind": c.kind, "params": c.params, "fitted": effect,
                                   "gain_train": g_train, "gain_val": g_val, "kept": False,
-                                  "criterion_met": bool(keep)})
+                                  "criterion_met": bool(keep), "implausible": why})
         trials.sort(key=lambda x: -x[0])
         chosen = next((t for t in trials if t[5]), None)
         if chosen is None:
