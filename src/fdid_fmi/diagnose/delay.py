@@ -68,7 +68,7 @@ def detect(ctx):
         cand = Candidate("delay", a, stat, RATIO, params={"samples": k_star},
                          evidence={"free_run_rms_um_by_shift": J.tolist(), "xcorr_peak_lag": int(lag),
                                    "xcorr_peak": rho},
-                         plot={"shift": np.arange(kmax + 1), "objective": J}, search="wide",
+                         plot={"shift": np.arange(kmax + 1), "objective": np.where(np.isfinite(J), J, np.nan)}, search="wide",
                          note="training free-run RMS without / with the best command shift")
         if cand.detected:
             cand.recipe = ag.add_delay(ctx.recipe, a, k_star)

@@ -79,7 +79,7 @@ class Diagnosis:
             "before": _per_axis(self.before), "after": _per_axis(self.after),
             "steps": [{"effect": s.effect, "before": _per_axis(s.before), "after": _per_axis(s.after),
                        "candidates": s.candidates} for s in self.steps],
-            "rounds": self.rounds,
+            "rounds": [{k: v for k, v in r.items() if k != "plots"} for r in self.rounds],
             "tests": {"before": self.tests_before, "after": self.tests_after},
             "criterion": {"min_gain": self.settings.get("min_gain"), "max_loss": self.settings.get("max_loss")},
             "split": self.split, "wall_time_s": self.wall_time_s,
@@ -188,7 +188,8 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
             say(f"round {step + 1}: detector {nm}")
             cands.extend(DETECTORS[nm].detect(ctx))
         detected = [c for c in cands if c.detected and c.recipe is not None and not _already(recipe, c)]
-        rnd = {"round": step + 1, "candidates": [c.summary() for c in cands], "trials": []}
+        rnd = {"round": step + 1, "candidates": [c.summary() for c in cands], "trials": [],
+               "plots": {f"{c.kind}|{c.axis}": c.plot for c in cands if c.plot}}
         diag.rounds.append(rnd)
         if not detected:
             say(f"round {step + 1}: nothing detected")

@@ -1,0 +1,213 @@
+"""HTML / JSON report of a diagnosis (built on :class:`fdid_fmi.report.Report`), and the same
+before/after numbers reproduced through exported FMUs.
+
+Per kept effect: its name and fitted parameters, the residual before and after on the training
+and held-out traces (figures), the evidence figure of its detector, and the RMS/MAX table. Then
+every candidate of every round (statistic, threshold, held-out gain, kept or why not), the
+whiteness / cross-correlation tests of what is left, and the FMU table when FMUs were checked.
+"""
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from ..report import Report, decimate
+
+
+def fmu_check(diag, workdir=None, fmi_version=2):
+    """Export the given and the final model as FMUs and validate both on both traces.
+
+    Returns
+    -------
+    dict ``{"before"|"after": {"train"|"val": {axis: {"rms_um", "max_um"}}, "max_abs_diff_reference_mm":
+    float}}``, or ``{"error": message}`` when FMU export / fmpy are not available.
+    """
+    try:
+        from ..fmu import export_fmu, validate_fmu
+    except ImportError as exc:  # pragma: no cover - depends on the FMU package
+        return {"error": f"FMU support not available: {exc}"}
+    wd = Path(workdir or tempfile.mkdtemp(prefix="fdid_diagnose_"))
+    wd.mkdir(parents=True, exist_ok=True)
+    out = {}
+    for label, model in (("before", diag.model), ("after", diag.final)):
+        try:
+            path = export_fmu(model, wd / f"model_{label}.fmu", fmi_version=fmi_version)
+        except Exception as exc:   # report, do not hide: the model table stands without it
+            return {"error": f"FMU export of the {label} model failed: {exc}"}
+        d = {"fmu": str(path), "max_abs_diff_reference_mm": 0.0}
+        for tname, tr in (("train", diag.train), ("val", diag.val)):
+            res = validate_fmu(path, tr, model=model)
+            d[tname] = res.axes
+            d["max_abs_diff_reference_mm"] = max(d["max_abs_diff_reference_mm"], res.max_abs_diff_reference_mm)
+            d.setdefault("problems", []).extend(res.problems)
+        out[label] = d
+    return out
+
+
+def _fmt_params(e):
+    skip = {"kind", "axis", "input", "inputs", "output"}
+    parts = []
+    for k, v in e.items():
+        if k in skip:
+            continue
+        parts.append(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}")
+    return ", ".join(parts)
+
+
+def error_rows(before, after, fmu=None):
+    rows = []
+    for tname in before:
+        for ch in before[tname]:
+            r = {"trace": tname, "channel": ch,
+                 "RMS before [µm]": before[tname][ch]["rms_um"], "RMS after [µm]": after[tname][ch]["rms_um"],
+                 "MAX before [µm]": before[tname][ch]["max_um"], "MAX after [µm]": after[tname][ch]["max_um"]}
+            b = before[tname][ch]["rms_um"]
+            r["RMS change"] = f"{100 * (after[tname][ch]['rms_um'] / b - 1):+.1f} %" if b > 0 else "–"
+            if fmu and "error" not in fmu and "." not in ch:
+                fb = fmu["before"].get(tname, {}).get(ch)
+                fa = fmu["after"].get(tname, {}).get(ch)
+                if fb and fa:
+                    r["FMU RMS before [µm]"], r["FMU RMS after [µm]"] = fb["rms_um"], fa["rms_um"]
+                    r["FMU MAX before [µm]"], r["FMU MAX after [µm]"] = fb["max_um"], fa["max_um"]
+            rows.append(r)
+    return rows
+
+
+def _residual_figure(step_label, rb, ra):
+    import matplotlib
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    chans = list(rb["train"].channels())
+    fig, axs = plt.subplots(len(chans), 2, figsize=(11, 2.6 * len(chans)), squeeze=False)
+    data = {}
+    for i, ch in enumerate(chans):
+        for j, tname in enumerate(("train", "val")):
+            t = decimate(rb[tname].t)
+            b = decimate(rb[tname].channels()[ch]) * 1e3
+            a = decimate(ra[tname].channels()[ch]) * 1e3
+            ax = axs[i][j]
+            ax.plot(t, b, lw=0.6, color="tab:red", label="before")
+            ax.plot(t, a, lw=0.6, color="tab:blue", label="after")
+            ax.set_title(f"{tname} · {ch}", fontsize=9)
+            ax.set_ylabel("residual [µm]")
+            ax.grid(alpha=0.3)
+            data[f"{tname}.{ch}"] = {"t_s": t, "before_um": b, "after_um": a}
+        axs[i][0].legend(fontsize=8, loc="upper right")
+    for j in range(2):
+        axs[-1][j].set_xlabel("t [s]")
+    fig.suptitle(step_label, fontsize=10)
+    fig.tight_layout()
+    return fig, data
+
+
+def _evidence_figure(cand):
+    import matplotlib.pyplot as plt
+    p = cand.get("plot") or {}
+    kind = cand["kind"]
+    if not p:
+        return None, None
+    fig, ax = plt.subplots(figsize=(8, 3))
+    if kind == "mode":
+        f, H, bg, coh = (np.asarray(p[k]) for k in ("f_hz", "H", "background", "coherence"))
+        ax.semilogy(f, H, lw=0.8, label="|residual / commanded acceleration|")
+        ax.semilogy(f, bg, lw=0.8, ls="--", label="running median")
+        ax2 = ax.twinx()
+        ax2.plot(f, coh, color="tab:green", lw=0.6, label="coherence")
+        ax2.set_ylim(0, 1)
+        ax2.set_ylabel("coherence")
+        ax.set_xlabel("f [Hz]")
+    elif kind == "periodic_position":
+        lam, P, bg = (np.asarray(p[k]) for k in ("wavelength_mm", "power", "background"))
+        ax.loglog(lam, P, lw=0.8, label="residual power over position")
+        ax.loglog(lam, bg, lw=0.8, ls="--", label="running median")
+        ax.set_xlabel("wavelength [mm]")
+    elif kind == "delay":
+        ax.plot(np.asarray(p["shift"]), np.asarray(p["objective"]), "o-")
+        ax.set_xlabel("command shift [samples]")
+        ax.set_ylabel("training free-run RMS [µm]")
+    else:
+        plt.close(fig)
+        return None, None
+    ax.legend(fontsize=8, loc="best")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig, p
+
+
+def diagnosis_report(diag, title=None, fmu=None, model_source=""):
+    """:class:`~fdid_fmi.report.Report` of a :class:`~.loop.Diagnosis` (optionally with the
+    :func:`fmu_check` result)."""
+    rep = Report(title or "Closing the loop: diagnosis", meta={
+        "model": model_source or diag.model.provenance.get("software", ""),
+        "training trace": diag.train.source, "held-out trace": diag.val.source,
+        "wall time": f"{diag.wall_time_s:.1f} s"})
+    s = diag.settings
+    eff = diag.effects_added
+    summary = ("Effects added: " + ("; ".join(f"{e['kind']} ({_fmt_params(e)})" for e in eff)
+                                    if eff else "none (no candidate met the keep criterion)") + ".")
+    rep.add_text(summary, heading="Summary")
+    rep.add_text(
+        f"Residual = measured - free-run prediction. An effect is kept only if the held-out RMS of some "
+        f"scored channel falls by at least {100 * s['min_gain']:.0f} % (against the better of the current "
+        f"model and the same refit without the effect) and no channel rises by more than "
+        f"{100 * s['max_loss']:.0f} %. {diag.split}")
+    rep.add_table("errors", error_rows(diag.before, diag.after, fmu),
+                  caption="free-run error before (given model) and after (every kept effect)")
+    if fmu:
+        if "error" in fmu:
+            rep.add_text(f"FMU check: {fmu['error']}")
+        else:
+            rep.add_text("FMU check: both models exported as FMI 2.0 co-simulation FMUs and run through "
+                         "fmpy on the same traces; largest |FMU - reference simulator| = "
+                         f"{max(fmu['before']['max_abs_diff_reference_mm'], fmu['after']['max_abs_diff_reference_mm']):.3g} mm.")
+    for i, st in enumerate(diag.steps, 1):
+        e = st.effect
+        rep.add_heading(f"Step {i}: {e['kind']} on axis {e['axis']}")
+        rep.add_text(f"Fitted parameters: {_fmt_params(e)}")
+        rep.add_table(f"step{i}_errors", error_rows(st.before, st.after),
+                      caption=f"error before / after step {i}")
+        fig, data = _residual_figure(f"step {i}: {e['kind']}", st.residual_before, st.residual_after)
+        rep.add_figure(f"step{i}_residual", fig, data, caption="residual before (red) and after (blue)")
+        plot = _round_plot(diag, i, e["kind"], e["axis"])
+        if plot:
+            f2, d2 = _evidence_figure({"kind": e["kind"], "plot": plot})
+            if f2 is not None:
+                rep.add_figure(f"step{i}_evidence", f2, d2, caption=f"evidence of the {e['kind']} detector")
+    rep.add_heading("Candidates, round by round")
+    for rnd in diag.rounds:
+        rows = []
+        for c in rnd["candidates"]:
+            trial = next((t for t in rnd["trials"] if t["kind"] == c["kind"] and t["params"] == c["params"]), {})
+            gv = trial.get("gain_val", {})
+            rows.append({"round": rnd["round"], "kind": c["kind"], "axis": c["axis"],
+                         "statistic": c["statistic"], "threshold": c["threshold"],
+                         "detected": "yes" if c["detected"] else "no",
+                         "held-out gain": ", ".join(f"{k}: {100 * v:+.1f} %" for k, v in gv.items()) or "–",
+                         "kept": "yes" if trial.get("kept") else ("implausible: " + trial["implausible"]
+                                                                  if trial.get("implausible") else "no"),
+                         "note": c["note"]})
+        rep.add_table(f"round{rnd['round']}", rows)
+    rep.add_heading("What is left: whiteness and input cross-correlation")
+    rows = []
+    for label, tests in (("before", diag.tests_before), ("after", diag.tests_after)):
+        for tname, axes in tests.items():
+            for a, t in axes.items():
+                rows.append({"model": label, "trace": tname, "axis": a, "99 % band": t["band"],
+                             "acf lags outside": f"{100 * t['acf_outside']:.0f} %", "max |acf|": t["acf_max"],
+                             "xcf(v_cmd) lags outside": f"{100 * t['xcf_outside']:.0f} %",
+                             "max |xcf|": t["xcf_max"]})
+    rep.add_table("whiteness", rows, caption="autocorrelation of the residual (lags 1-50) and its "
+                                             "cross-correlation with the commanded velocity (lags -50..50)")
+    rep.add_data("diagnosis", diag.to_json())
+    if fmu:
+        rep.add_data("fmu", fmu)
+    return rep
+
+
+def _round_plot(diag, i, kind, axis):
+    for rnd in diag.rounds:
+        if rnd["round"] == i:
+            return rnd.get("plots", {}).get(f"{kind}|{axis}")
+    return None
