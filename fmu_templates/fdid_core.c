@@ -78,15 +78,37 @@ void fdid_state_defaults(FdidState *S) {
 }
 
 /* -------------------------------------------------------------- building blocks */
-/* out = X v (X row-major r x c), numpy's X @ v */
-static void matvec(const double *X, int r, int c, const double *v, double *out) {
-    int i, j;
-    for (i = 0; i < r; i++) {
-        double s = 0.0;
-        const double *row = X + (size_t)i * (size_t)c;
-        for (j = 0; j < c; j++) s += row[j] * v[j];
-        out[i] = s;
+/* sum_j a[j] b[j] in numpy's pairwise order (np.add.reduce(a * b)): sequential below 8 terms,
+ * 8 partial sums up to 128, halves above. Products and sums are plain IEEE operations (no FMA:
+ * -std=c99 implies -ffp-contract=off), so the result is bit-identical to numpy's. */
+static double fdid_dot(const double *a, const double *b, int n) {
+    int i;
+    if (n < 8) {
+        double res = 0.0;
+        for (i = 0; i < n; i++) res += a[i] * b[i];
+        return res;
     }
+    if (n <= 128) {
+        double r[8], res;
+        int j;
+        for (j = 0; j < 8; j++) r[j] = a[j] * b[j];
+        for (i = 8; i < n - (n % 8); i += 8)
+            for (j = 0; j < 8; j++) r[j] += a[i + j] * b[i + j];
+        res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
+        for (; i < n; i++) res += a[i] * b[i];
+        return res;
+    }
+    {
+        int n2 = n / 2;
+        n2 -= n2 % 8;
+        return fdid_dot(a, b, n2) + fdid_dot(a + n2, b + n2, n - n2);
+    }
+}
+
+/* out = X v (X row-major r x c) */
+static void matvec(const double *X, int r, int c, const double *v, double *out) {
+    int i;
+    for (i = 0; i < r; i++) out[i] = fdid_dot(X + (size_t)i * (size_t)c, v, c);
 }
 
 /* effective friction level / v_tilde of friction input j (simulate._Plan) */
@@ -247,9 +269,8 @@ void fdid_initialize(FdidState *S) {
     /* y0 = C xi + D u0 + yoff; x[-1] = x[0] - v0 Ts, v[-1] = v0 */
     for (a = 0; a < M->n_axes; a++) {
         int o = M->axis_pos_output[a];
-        double c = 0.0, dd = 0.0;
-        for (j = 0; j < n; j++) c += M->C[(size_t)o * (size_t)n + (size_t)j] * S->xi[j];
-        for (j = 0; j < m; j++) dd += M->D[(size_t)o * (size_t)m + (size_t)j] * u0[j];
+        double c = fdid_dot(M->C + (size_t)o * (size_t)n, S->xi, n);
+        double dd = fdid_dot(M->D + (size_t)o * (size_t)m, u0, m);
         S->x_prev[a] = ((c + dd) + S->yoff[o]) - S->v0[a] * M->Ts;
         S->v_prev[a] = S->v0[a];
     }
@@ -279,10 +300,8 @@ void fdid_outputs(FdidState *S) {
     }
     /* y = C xi + D u + yoff */
     for (o = 0; o < p; o++) {
-        double c = 0.0, dd = 0.0;
-        const double *cr = M->C + (size_t)o * (size_t)n, *dr = M->D + (size_t)o * (size_t)m;
-        for (j = 0; j < n; j++) c += cr[j] * S->xi[j];
-        for (j = 0; j < m; j++) dd += dr[j] * u[j];
+        double c = fdid_dot(M->C + (size_t)o * (size_t)n, S->xi, n);
+        double dd = fdid_dot(M->D + (size_t)o * (size_t)m, u, m);
         y[o] = (c + dd) + S->yoff[o];
     }
     if (nf > 0) {
@@ -317,7 +336,7 @@ void fdid_outputs(FdidState *S) {
 /* one internal step: outputs of the current time, then memory and state update */
 void fdid_advance(FdidState *S) {
     const FdidModel *M = S->M;
-    int n = M->n, m = M->m, i, j, a;
+    int n = M->n, m = M->m, i, a;
     fdid_outputs(S);
     for (a = 0; a < M->n_axes; a++) {
         S->v_prev[a] = S->vel[a];
@@ -325,11 +344,8 @@ void fdid_advance(FdidState *S) {
     }
     /* xi <- A xi + B u (new state in the scratch vector first: every row needs the old xi) */
     for (i = 0; i < n; i++) {
-        double s1 = 0.0, s2 = 0.0;
-        const double *ar = M->A + (size_t)i * (size_t)n, *br = M->B + (size_t)i * (size_t)m;
-        for (j = 0; j < n; j++) s1 += ar[j] * S->xi[j];
-        for (j = 0; j < m; j++) s2 += br[j] * S->u[j];
-        S->work_n[i] = s1 + s2;
+        S->work_n[i] = fdid_dot(M->A + (size_t)i * (size_t)n, S->xi, n) +
+                       fdid_dot(M->B + (size_t)i * (size_t)m, S->u, m);
     }
     for (i = 0; i < n; i++) S->xi[i] = S->work_n[i];
     S->f.steps += 1;

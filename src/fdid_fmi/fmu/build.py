@@ -39,7 +39,7 @@ PLATFORMS = {
                       ("-static-libgcc", "-s")),
 }
 
-CFLAGS = ("-O2", "-std=c99", "-Wall", "-Wextra", "-Werror")
+CFLAGS = ("-O2", "-std=c99", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror")
 
 
 def compiler_available(platform):

@@ -2,7 +2,8 @@
 
 A prototyping path, never the default: the FMU runs this file in the importer's Python
 (pythonfmu's wrapper loads libpython), which needs numpy. The semantics are those of
-fdid_fmi.simulate and of the C FMU (see fmu_templates/fdid_model.h); the model data and the
+fdid_fmi.simulate and of the C FMU (see fmu_templates/fdid_model.h), with the C core's
+summation order (numpy's pairwise sum, ``_mv``) so that both FMUs agree bit for bit; the model data and the
 variable table are read from resources/fdid_layout.json, so fdid_fmi itself is not needed.
 """
 import json
@@ -21,6 +22,36 @@ _VARI = {"continuous": Fmi2Variability.continuous, "tunable": Fmi2Variability.tu
 
 def _sat(x):
     return min(1.0, max(-1.0, x))
+
+
+def _mv(M, v):
+    """M @ v with numpy's pairwise summation per row (the C core's order, bit for bit)."""
+    if M.shape[1] == 0:
+        return np.zeros(M.shape[0])
+    return np.add.reduce(np.ascontiguousarray(M) * v, axis=1)
+
+
+def _lu_solve(M, r):
+    """Partial-pivot elimination in the C core's order; raises LinAlgError when singular."""
+    M, r, k = M.copy(), r.copy(), len(r)
+    for c in range(k):
+        piv = c + int(np.argmax(np.abs(M[c:, c])))
+        if M[piv, c] == 0.0:
+            raise np.linalg.LinAlgError("singular")
+        if piv != c:
+            M[[c, piv]] = M[[piv, c]]
+            r[[c, piv]] = r[[piv, c]]
+        for q in range(c + 1, k):
+            f = M[q, c] / M[c, c]
+            for j in range(c + 1, k):
+                M[q, j] -= f * M[c, j]
+            r[q] -= f * r[c]
+    for q in range(k - 1, -1, -1):
+        s = r[q]
+        for j in range(q + 1, k):
+            s -= M[q, j] * r[j]
+        r[q] = s / M[q, q]
+    return r
 
 
 class FdidSlaveBase(Fmi2Slave):
@@ -155,7 +186,7 @@ class FdidSlaveBase(Fmi2Slave):
         self.uref = np.zeros(m)
         for a, i in enumerate(self._acmd):
             self.uref[i] = self.cmd[a]
-        self.yoff = self._G1 @ self.uref
+        self.yoff = _mv(self._G1, self.uref)
         u0, du = np.zeros(m), np.zeros(m)
         for a, i in enumerate(self._acmd):
             du[i] = self.v0[a] * self.Ts
@@ -167,8 +198,8 @@ class FdidSlaveBase(Fmi2Slave):
             elif p["kind"] == "feature":
                 a = p["axis"]
                 u0[i] = self._feature(p, self.v0[a], self.cmd[a], self.cmd[a])
-        self.xi = self._S @ u0 - self._S2 @ du
-        y0 = self._C @ self.xi + self._D @ u0 + self.yoff
+        self.xi = _mv(self._S, u0) - _mv(self._S2, du)
+        y0 = _mv(self._C, self.xi) + _mv(self._D, u0) + self.yoff
         self.x_prev = np.array([y0[self._apos[a]] - self.v0[a] * self.Ts for a in range(self._na)])
         self.v_prev = self.v0.copy()
         self._steps = 0
@@ -199,12 +230,12 @@ class FdidSlaveBase(Fmi2Slave):
             if lin:
                 g = np.array([level[i] / vt[i] for i in lin])
                 M = np.eye(len(lin)) - g[:, None] * beta[np.ix_(lin, lin)]
-                rhs = g * (alpha[lin] + beta[np.ix_(lin, nl)] @ d[nl])
+                rhs = g * (alpha[lin] + _mv(beta[np.ix_(lin, nl)], d[nl]))
                 try:
-                    d[lin] = np.linalg.solve(M, rhs)
+                    d[lin] = _lu_solve(M, rhs)
                 except np.linalg.LinAlgError:
                     continue
-            z = (alpha + beta @ d) / vt
+            z = (alpha + _mv(beta, d)) / vt
             ok = True
             for i in range(m):
                 if level[i] == 0.0:
@@ -231,7 +262,7 @@ class FdidSlaveBase(Fmi2Slave):
             elif p["kind"] == "feature":
                 a = p["axis"]
                 u[i] = self._feature(p, self.v_prev[a], self.cmd[a], self.x_prev[a])
-        y = self._C @ self.xi + self._D @ u + self.yoff
+        y = _mv(self._C, self.xi) + _mv(self._D, u) + self.yoff
         nf = len(self._fric)
         if nf:
             alpha = np.empty(nf)
@@ -242,7 +273,7 @@ class FdidSlaveBase(Fmi2Slave):
                             np.array([self._fvt(j) for j in range(nf)]))
             for j, i in enumerate(self._fric):
                 u[i] = d[j]
-            y = y + self._D[:, self._fric] @ d
+            y = y + _mv(self._D[:, self._fric], d)
         self.u, self.y = u, y
         self.vel = np.array([y[self._avel[a]] if self._avel[a] >= 0
                              else (y[self._apos[a]] - self.x_prev[a]) / self.Ts for a in range(self._na)])
@@ -253,7 +284,7 @@ class FdidSlaveBase(Fmi2Slave):
         for a in range(self._na):
             self.v_prev[a] = self.vel[a]
             self.x_prev[a] = self.y[self._apos[a]]
-        self.xi = self._A @ self.xi + self._B @ self.u
+        self.xi = _mv(self._A, self.xi) + _mv(self._B, self.u)
         self._steps += 1
         self._out_dirty = True
 
