@@ -411,3 +411,20 @@ def test_fmi3_fmu_validates_and_equals_the_reference(tmp_path):
             f.doStep(0.0, 1.5 * m.Ts)
     finally:
         r.close()
+
+
+def test_fmpy_simulate_fmu_records_after_the_step(fmus):
+    """fmpy.simulate_fmu works on the FMU; its row k+1 is the output after doStep(t_k) with the
+    input of t_k held (the documented one-sample shift against the reference simulator)."""
+    from fmpy import simulate_fmu
+    m, fmu = fmus["siso"]
+    n = 400
+    c = fs.smooth_moves(n, np.random.default_rng(3), start=1.0)
+    sig = np.array(list(zip(np.arange(n) * m.Ts, c)), dtype=[("time", float), ("x_x_cmd", float)])
+    res = simulate_fmu(str(fmu), start_time=0.0, stop_time=(n - 1) * m.Ts, output_interval=m.Ts, input=sig,
+                       output=["x_x"], start_values={"x_x_cmd": c[0]})
+    after = run_fmu(fmu, {"x": c}, m.Ts, outputs=["x_x"], read="after")
+    ref = simulate(m, {"x": c}, Ts=m.Ts)
+    assert np.array_equal(res["x_x"][1:], after["x_x"][:-1])
+    assert abs(res["x_x"][0] - ref.axes["x"]["position"][0]) <= 1e-9
+    assert np.abs(res["x_x"][1:] - ref.axes["x"]["position"][1:]).max() > 1e-6   # shifted: not equal
