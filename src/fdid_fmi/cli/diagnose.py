@@ -1,0 +1,100 @@
+"""``fdid diagnose MODEL.json --train TRACE [--val TRACE]``: find what the residual says the
+model lacks, add it, and report the error before and after.
+
+    fdid diagnose model.json --train run1.csv --val run2.csv --map t=t_s x.cmd=xc x.act=xm \\
+        -o model_plus.json --report diagnosis.html --json diagnosis.json
+    fdid diagnose emps.json --train DATA_EMPS_PULSES.mat          # halves: fit / held out
+"""
+from __future__ import annotations
+
+import json
+import sys
+
+from ..errors import InputError
+from ..model import DriveModel, load_model
+from .mapping import add_trace_arguments, trace_from_args
+
+
+def register(sub):
+    p = sub.add_parser("diagnose", help="find effects the model lacks, add them, report before/after",
+                       description="Residual of the model's free run -> detectors (friction at reversals, "
+                                   "mode, dead time, position-periodic force, coupling / unused channels) -> "
+                                   "augment and refit -> keep only what lowers the held-out error.")
+    p.add_argument("model", help="model JSON (pole-search or MIMO) written by fdid identify")
+    p.add_argument("--train", required=True, help="trace the effects are fitted on")
+    p.add_argument("--val", default=None,
+                   help="held-out trace the keep criterion is judged on (default: the training trace is "
+                        "split in halves, first half fitted, second half held out)")
+    p.add_argument("--train-range", default=None, metavar="START:STOP", help="use this time range of --train [s]")
+    p.add_argument("--val-range", default=None, metavar="START:STOP", help="use this time range of --val [s]")
+    p.add_argument("-o", "--output", default=None, help="write the augmented model JSON here")
+    p.add_argument("--report", default=None, help="write the HTML report here")
+    p.add_argument("--json", default=None, help="write the JSON summary here")
+    p.add_argument("--min-gain", type=float, default=0.05,
+                   help="keep an effect only if the held-out RMS falls by at least this fraction (0.05)")
+    p.add_argument("--max-loss", type=float, default=0.01,
+                   help="... and no scored channel rises by more than this fraction (0.01)")
+    p.add_argument("--max-steps", type=int, default=4, help="at most this many effects added")
+    p.add_argument("--maxiter", type=int, default=25, help="DE iterations of each refit")
+    p.add_argument("--detectors", default=None,
+                   help="comma list of detector families (friction, mode, delay, periodic, coupling)")
+    p.add_argument("--exclude", nargs="+", action="extend", default=[], metavar="CHANNEL",
+                   help="channels never to use as inputs")
+    p.add_argument("--fmu", action="store_true",
+                   help="also export both models as FMUs and reproduce the error table through them")
+    add_trace_arguments(p)
+    p.set_defaults(func=run)
+
+
+def _ranged(trace, text, name):
+    if not text:
+        return trace
+    try:
+        a, b = text.split(":")
+        a = float(a) if a.strip() else None
+        b = float(b) if b.strip() else None
+    except ValueError:
+        raise InputError(f"'{text}' is not START:STOP in seconds", column=name) from None
+    return trace.slice(a, b)
+
+
+def run(args):
+    from ..diagnose import diagnose
+    from ..diagnose.reporting import diagnosis_report, fmu_check
+    model = load_model(args.model)
+    if not isinstance(model, DriveModel):
+        raise InputError("diagnosis needs a state-space model (pole search / MIMO), not a quasi-static one",
+                         source=args.model)
+    train = _ranged(trace_from_args(args.train, args), args.train_range, "--train-range")
+    val = _ranged(trace_from_args(args.val, args), args.val_range, "--val-range") if args.val else None
+    dets = [d.strip() for d in args.detectors.split(",")] if args.detectors else None
+    diag = diagnose(model, train, val, detectors=dets, min_gain=args.min_gain, max_loss=args.max_loss,
+                    max_steps=args.max_steps, maxiter=args.maxiter, exclude=args.exclude,
+                    progress=lambda m: print(f"  {m}", file=sys.stderr))
+    fmu = fmu_check(diag) if args.fmu else None
+    print(f"effects added: {[e['kind'] for e in diag.effects_added] or 'none'}")
+    for tname in diag.before:
+        for ch, b in diag.before[tname].items():
+            a = diag.after[tname][ch]
+            line = (f"  {tname:5s} {ch:8s} RMS {b['rms_um']:.4g} -> {a['rms_um']:.4g} um, "
+                    f"MAX {b['max_um']:.4g} -> {a['max_um']:.4g} um")
+            if fmu and "error" not in fmu and "." not in ch:
+                line += (f"   (FMU: RMS {fmu['before'][tname][ch]['rms_um']:.4g} -> "
+                         f"{fmu['after'][tname][ch]['rms_um']:.4g} um)")
+            print(line)
+    if fmu and "error" in fmu:
+        print(f"  FMU check: {fmu['error']}")
+    if args.output:
+        diag.final.save(args.output)
+        print(f"augmented model written to {args.output}")
+    if args.json:
+        d = diag.to_json()
+        if fmu:
+            d["fmu"] = fmu
+        with open(args.json, "w") as fh:
+            json.dump(d, fh, indent=1)
+        print(f"JSON summary written to {args.json}")
+    if args.report:
+        diagnosis_report(diag, fmu=fmu, model_source=args.model).write(args.report)
+        print(f"report written to {args.report}")
+    return 0
