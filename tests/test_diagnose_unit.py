@@ -1,0 +1,155 @@
+"""Diagnosis building blocks: delay line, masks, residual sign, position spectrum, events, report."""
+import json
+import re
+
+import numpy as np
+import pytest
+
+from fdid_fmi.diagnose import augment as ag
+from fdid_fmi.diagnose.base import motion_events
+from fdid_fmi.diagnose.periodic import constant_velocity_segments, position_spectrum
+from fdid_fmi.diagnose.residuals import delayed, residuals, with_channels
+from fdid_fmi.diagnose.whiteness import correlation_tests
+from fdid_fmi.errors import InputError
+from fdid_fmi.identify import identify_siso
+from fdid_fmi.report import Report
+from fdid_fmi.simulate import simulate
+from fdid_fmi.trace import Trace
+
+
+def _ramp_trace(n=3000, Ts=1e-3, seed=0):
+    """A smooth back-and-forth command and a first-order-lag 'measurement'."""
+    t = np.arange(n) * Ts
+    tm = np.maximum(t - 0.05, 0.0)                     # at rest for the first 50 samples
+    cmd = 10 * (1 - np.cos(2 * np.pi * 0.7 * tm)) + 2 * np.sin(2 * np.pi * 1.15 * tm) ** 2
+    act = np.empty(n)
+    act[0] = cmd[0]
+    a = np.exp(-Ts * 60)
+    for k in range(1, n):
+        act[k] = a * act[k - 1] + (1 - a) * cmd[k - 1]
+    act += np.random.default_rng(seed).normal(0, 1e-5, n)
+    return Trace.from_arrays(t, {"x": {"cmd": cmd, "act": act}})
+
+
+@pytest.fixture(scope="module")
+def small_model():
+    tr = _ramp_trace()
+    return identify_siso(tr, maxiter=10, friction=False), tr
+
+
+def test_delay_line_delays_position_but_not_error_command(small_model):
+    model, tr = small_model
+    d = 3
+    md = ag.add_command_delay(model, "x", d)
+    assert md.n_states == model.n_states + d
+    # the delayed model on the command equals the undelayed one on the shifted command (position)
+    shifted = with_channels(tr, {"x_cmd": delayed(tr.cmd("x"), d)})
+    a = simulate(md, tr, start_velocity={"x": 0.0})
+    b = simulate(model, shifted, start_velocity={"x": 0.0})
+    assert np.max(np.abs(a.axes["x"]["position"] - b.axes["x"]["position"])) < 1e-9
+    # and its error output is the UNDELAYED command minus that position
+    e = a.axes["x"]["error"]
+    assert np.max(np.abs(e - (tr.cmd("x") - a.axes["x"]["position"]))) < 1e-9
+    # a step in the command reaches the position d samples later than without the delay line
+    n = 60
+    step = {"x": np.r_[np.zeros(10), np.ones(n - 10)]}
+    p0 = simulate(model, step, Ts=model.Ts).axes["x"]["position"]
+    p1 = simulate(md, step, Ts=model.Ts).axes["x"]["position"]
+    assert np.max(np.abs(p1[d:] - p0[:-d])) < 1e-12
+    assert np.all(p1[:10 + d] == pytest.approx(0.0, abs=1e-12))
+
+
+def test_delay_line_rejects_unknown_axis(small_model):
+    model, _ = small_model
+    with pytest.raises(InputError, match="no command input for axis 'y'"):
+        ag.add_command_delay(model, "y", 2)
+
+
+def test_residual_is_measured_minus_prediction(small_model):
+    model, tr = small_model
+    r = residuals(model, tr)
+    sim = simulate(model, tr)
+    assert np.allclose(r.axes["x"].residual, tr.act("x") - sim.axes["x"]["position"])
+    tab = r.table()["x"]
+    assert tab["rms_um"] == pytest.approx(np.sqrt(np.mean(r.axes["x"].residual ** 2)) * 1e3)
+
+
+def test_residuals_need_measured_position(small_model):
+    model, tr = small_model
+    cmd_only = Trace.from_arrays(tr.t, {"x": {"cmd": tr.cmd("x")}})
+    with pytest.raises(InputError, match="measured position"):
+        residuals(model, cmd_only)
+
+
+def test_mask_shift_keeps_low_powers_and_extends_full_numerators():
+    assert ag._shift_mask({3, 2, 1}, 3, 5) == frozenset({1, 2, 3, 4, 5})   # all but d.c. stays so
+    assert ag._shift_mask({1}, 3, 5) == frozenset({1})                      # s/P(s) stays s/P(s)
+    assert ag._shift_mask({1, 0}, 3, 5) == frozenset({0, 1})
+
+
+def test_recipe_needs_pole_search_model(small_model):
+    model, _ = small_model
+    m = model.copy()
+    m.identification = {}
+    with pytest.raises(InputError, match="pole-search"):
+        ag.recipe_from_model(m)
+
+
+def test_position_spectrum_finds_the_period():
+    rng = np.random.default_rng(3)
+    pairs = []
+    for x0, L, v in ((0.0, 30.0, 0.05), (40.0, 25.0, 0.08), (-35.0, 22.0, 0.03)):
+        x = x0 + np.arange(0, L, v)
+        r = 1e-3 * np.sin(2 * np.pi * x / 4.2 + rng.uniform(0, 6)) + rng.normal(0, 3e-4, x.size)
+        pairs.append((x, r))
+    kap, P, dx = position_spectrum(pairs)
+    lam = 1 / kap[np.argmax(P)]
+    assert abs(lam / 4.2 - 1) < 0.05
+
+
+def test_constant_velocity_segments_and_events():
+    Ts = 1e-3
+    t = np.arange(4000) * Ts
+    v = np.interp(t, [0, 0.5, 0.6, 1.5, 1.6, 2.0, 2.1, 3.0, 3.1, 4.0], [0, 0, 50, 50, 0, 0, -50, -50, 0, 0])
+    x = np.cumsum(v) * Ts
+    segs = constant_velocity_segments(x, Ts)
+    assert len(segs) == 2
+    assert all(b - a > 800 for a, b in segs)
+    ev = motion_events(x, Ts)
+    kinds = [(k, d) for _, k, d in ev]
+    assert kinds == [("start", 1.0), ("stop", 1.0), ("start", -1.0), ("stop", -1.0)]
+
+
+def test_whiteness_of_white_noise_and_of_a_filtered_one():
+    rng = np.random.default_rng(1)
+    w = rng.normal(size=20000)
+    u = rng.normal(size=20000)
+    t = correlation_tests(w, u)
+    assert t["acf_outside"] < 0.1 and t["xcf_outside"] < 0.1
+    coloured = np.convolve(w, np.ones(20) / 20, mode="same")
+    t2 = correlation_tests(coloured, u)
+    assert t2["acf_outside"] > 0.3
+
+
+def test_report_is_self_contained_html_with_figure_data(tmp_path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    rep = Report("a test report", meta={"who": "tests"})
+    rep.add_text("first paragraph <b>escaped</b>\n\nsecond", heading="Summary")
+    rep.add_table("errors", [{"trace": "val", "RMS [µm]": 1.23456}], caption="table caption")
+    fig, ax = plt.subplots()
+    ax.plot([0, 1, 2], [1, 0, 1])
+    rep.add_figure("curve", fig, data={"x": np.array([0, 1, 2]), "y": [1.0, 0.0, float("nan")]})
+    path = rep.write(tmp_path / "r.html")
+    text = path.read_text()
+    assert "data:image/png;base64," in text
+    assert "&lt;b&gt;escaped&lt;/b&gt;" in text and "<b>escaped" not in text
+    assert "src='http" not in text and "<link" not in text        # nothing external
+    blob = re.search(r"<script type='application/json' id='report-data'>(.*?)</script>", text, re.S).group(1)
+    data = json.loads(blob)
+    assert data["figures"]["curve"]["data"]["x"] == [0, 1, 2]
+    assert data["figures"]["curve"]["data"]["y"][2] is None
+    assert data["tables"]["errors"]["rows"][0][1] == pytest.approx(1.23456)
+    j = json.loads(rep.write_json(tmp_path / "r.json").read_text())
+    assert j["title"] == "a test report"
