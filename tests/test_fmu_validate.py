@@ -93,3 +93,15 @@ def test_identified_emps_model_as_fmu(shared_data, tmp_path):
     assert res.max_abs_diff_reference_mm <= 1e-9
     assert "run-up" in res.start                      # EMPS starts accelerating at 14 mm/s
     assert res.axes["x"]["rms_um"] < 3.5              # measured 2.7 um, as the reference simulator
+
+
+def test_validate_reports_an_fmu_without_a_binary_for_this_platform(case, tmp_path):
+    import zipfile
+    src = case["fmu"]
+    dst = tmp_path / "nobin.fmu"
+    with zipfile.ZipFile(src) as zi, zipfile.ZipFile(dst, "w") as zo:
+        for item in zi.infolist():
+            if not item.filename.startswith("binaries/"):
+                zo.writestr(item, zi.read(item.filename))
+    with pytest.raises(InputError, match="could not be run"):
+        validate_fmu(dst, case["trace"])

@@ -324,7 +324,13 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
         res.start = "steady ramp at " + ", ".join(f"{a}_v0 = {v:.6g} mm/s" for a, v in v0.items())
     t0 = time.perf_counter()
     # the FMU steps at its own Ts (the reference accepts traces sampled within 0.1 % of it)
-    out = run_fmu(fmu_path, drive, model.Ts, start_velocity=v0, externals=drive_ext, outputs=names)
+    try:
+        out = run_fmu(fmu_path, drive, model.Ts, start_velocity=v0, externals=drive_ext, outputs=names)
+    except InputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions (missing binary, FMI error)
+        raise InputError(f"the FMU could not be run through fmpy ({exc}); does it have a binary "
+                         f"for this platform?", source=str(fmu_path)) from None
     dt = time.perf_counter() - t0
     out = {k: v[R:] for k, v in out.items()}
     res.fmi_version = _fmi_version(fmu_path)
