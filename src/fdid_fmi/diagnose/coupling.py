@@ -13,8 +13,9 @@ Tustin filters, with the model's own denominator P, that the refit uses; for ano
 position all terms but the d.c. one), i.e. the multiple correlation of the residual with the
 candidate signal as the model would carry it.
 
-Threshold ``R2`` (calibration on clean virtual-drive runs, ``examples/diagnose_calibrate.py``):
-an independent axis's command explains at most about 3 % of a clean residual.
+Threshold ``R2`` (calibration: ``examples/diagnose_calibrate.py``, two uncoupled axes, 3 seeds):
+the other axis's command explains at most 0.2 % of a clean residual; a 0.02 kg acceleration
+coupling gives 0.27, EMPS ``pulses_N`` 0.999.
 """
 from __future__ import annotations
 

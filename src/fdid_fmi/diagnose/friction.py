@@ -19,9 +19,13 @@ Backlash / lost motion (needs a tool-side channel)
     is added with its own numerators (the motor-side fit is unchanged) and must beat the same
     tool-side output without the backlash input (``reference``).
 
-Thresholds (calibration on clean virtual-drive runs, see ``examples/diagnose_calibrate.py``):
-the largest clean values were about 1.5 (concentration), 2.2 (|t| asymmetry) and 3 (|t| tool side,
-drive with a rigid tool channel); the thresholds are ``STRIBECK_RATIO``, ``ASYM_T``, ``BACKLASH_T``.
+Thresholds (calibration: ``examples/diagnose_calibrate.py``, 12 clean virtual-drive runs --
+gentle and fast moves, a softer velocity loop, two uncoupled axes, 3 seeds each): the largest
+clean values were 2.35 (concentration; Stribeck data: 3.5-4) and 1.9 (|t| asymmetry); hence
+``STRIBECK_RATIO`` = 2.6 and ``ASYM_T`` = 4. The clean runs have no tool channel; the tool-side
+statistic was 2.1 on the backlash data once the backlash was modelled and 5.8 on a two-mass axis
+without backlash (tool-side dynamics, not lost motion), against 73 with 20 µm backlash: hence
+``BACKLASH_T`` = 8.
 """
 from __future__ import annotations
 
@@ -31,9 +35,9 @@ from . import augment as ag
 from .base import Candidate, command_velocity, motion_events, scan_refine
 
 WINDOW_S = 0.04
-STRIBECK_RATIO = 2.0
+STRIBECK_RATIO = 2.6
 ASYM_T = 4.0
-BACKLASH_T = 5.0
+BACKLASH_T = 8.0
 
 
 def _windows(events, n, w):
