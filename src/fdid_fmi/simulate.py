@@ -36,6 +36,38 @@ from .errors import InputError
 from .model import DriveModel, QuasiStaticModel
 from .trace import Trace
 
+def _mv(M, v):
+    """M @ v summed like the C core (numpy's pairwise order: np.add.reduce over each row)."""
+    return np.add.reduce(np.ascontiguousarray(M) * v, axis=1) if M.shape[1] else np.zeros(M.shape[0])
+
+
+def _lu_solve(M, r):
+    """Gaussian elimination with partial pivoting on lists of floats, in the C core's order
+    (``lu_solve`` in fmu_templates/fdid_core.c). Returns None if singular."""
+    k = len(r)
+    for c in range(k):
+        piv, best = c, abs(M[c][c])
+        for q in range(c + 1, k):
+            if abs(M[q][c]) > best:
+                best, piv = abs(M[q][c]), q
+        if M[piv][c] == 0.0:
+            return None
+        if piv != c:
+            M[c], M[piv] = M[piv], M[c]
+            r[c], r[piv] = r[piv], r[c]
+        for q in range(c + 1, k):
+            f = M[q][c] / M[c][c]
+            for j in range(c + 1, k):
+                M[q][j] -= f * M[c][j]
+            r[q] -= f * r[c]
+    for q in range(k - 1, -1, -1):
+        acc = r[q]
+        for j in range(q + 1, k):
+            acc -= M[q][j] * r[j]
+        r[q] = acc / M[q][q]
+    return r
+
+
 _TOL = 1e-12
 
 
@@ -137,7 +169,7 @@ def solve_friction(alpha, beta, level, vt, branches):
     """
     m = len(alpha)
     if m == 1:  # closed form, the common case
-        L, v, a, b = level[0], vt[0], alpha[0], beta[0][0]
+        L, v, a, b = float(level[0]), float(vt[0]), float(alpha[0]), float(beta[0][0])
         if L == 0.0:
             return np.zeros(1)
         den = v - L * b
@@ -149,35 +181,45 @@ def solve_friction(alpha, beta, level, vt, branches):
             if s * (a + b * s * L) >= v * (1 - _TOL):
                 return np.array([s * L])
         return np.array([L * _sat(a / v)])
+    # plain floats: the same operations, in the same order, as the C core
+    al = [float(x) for x in alpha]
+    be = [[float(x) for x in row] for row in beta]
+    lv = [float(x) for x in level]
+    vv = [float(x) for x in vt]
     for br in branches:
-        d = np.zeros(m)
+        d = [br[i] * lv[i] if br[i] else 0.0 for i in range(m)]
         lin = [i for i in range(m) if br[i] == 0]
-        for i in range(m):
-            if br[i] != 0:
-                d[i] = br[i] * level[i]
+        non = [i for i in range(m) if br[i] != 0]
         if lin:
-            g = np.array([level[i] / vt[i] for i in lin])
-            M = np.eye(len(lin)) - g[:, None] * beta[np.ix_(lin, lin)]
-            rhs = g * (alpha[lin] + beta[np.ix_(lin, [i for i in range(m) if br[i] != 0])]
-                       @ d[[i for i in range(m) if br[i] != 0]])
-            try:
-                d[lin] = np.linalg.solve(M, rhs)
-            except np.linalg.LinAlgError:
+            g = [lv[i] / vv[i] for i in lin]
+            M = [[(1.0 if r == c else 0.0) - g[r] * be[lin[r]][lin[c]] for c in range(len(lin))]
+                 for r in range(len(lin))]
+            rhs = []
+            for r, i in enumerate(lin):
+                acc = 0.0
+                for j in non:
+                    acc += be[i][j] * d[j]
+                rhs.append(g[r] * (al[i] + acc))
+            sol = _lu_solve(M, rhs)
+            if sol is None:
                 continue
-        z = (alpha + beta @ d) / vt
+            for r, i in enumerate(lin):
+                d[i] = sol[r]
         ok = True
         for i in range(m):
-            if level[i] == 0.0:
+            if lv[i] == 0.0:
                 continue
-            if br[i] == 0 and abs(z[i]) > 1 + _TOL:
+            acc = 0.0
+            for j in range(m):
+                acc += be[i][j] * d[j]
+            z = (al[i] + acc) / vv[i]
+            if (br[i] == 0 and abs(z) > 1 + _TOL) or (br[i] == 1 and z < 1 - _TOL) or \
+                    (br[i] == -1 and z > -1 + _TOL):
                 ok = False
-            elif br[i] == 1 and z[i] < 1 - _TOL:
-                ok = False
-            elif br[i] == -1 and z[i] > -1 + _TOL:
-                ok = False
+                break
         if ok:
-            return d
-    return np.array([level[i] * _sat(alpha[i] / vt[i]) for i in range(m)])
+            return np.array(d)
+    return np.array([lv[i] * _sat(al[i] / vv[i]) for i in range(m)])
 
 
 def run_up(cmds, Ts, max_seconds=2.0):
@@ -312,7 +354,7 @@ def _run(plan, cmds, exts, t, v0):
     uref = np.zeros(nu)
     for a, i in plan.cmd.items():
         uref[i] = cmds[a][0]
-    yoff = G1 @ uref
+    yoff = _mv(G1, uref)
     v0 = {a: float(v0.get(a, 0.0)) for a in plan.axes}
 
     # --- initial state: steady ramp (see module docstring)
@@ -327,8 +369,8 @@ def _run(plan, cmds, exts, t, v0):
     for i in plan.feat:
         a = ins[i].axis
         u0[i] = feature_value(ins[i].params, v0[a], cmds[a][0], cmds[a][0])
-    xi = plan.S @ u0 - plan.S2 @ du
-    y0 = C @ xi + D @ u0 + yoff
+    xi = _mv(plan.S, u0) - _mv(plan.S2, du)
+    y0 = _mv(C, xi) + _mv(D, u0) + yoff
     x_prev = {a: y0[plan.pos[a]] - v0[a] * Ts for a in plan.axes}
     v_prev = dict(v0)
 
@@ -351,7 +393,7 @@ def _run(plan, cmds, exts, t, v0):
             u[i] = feature_value(ins[i].params, v_prev[a], cmds[a][k], x_prev[a])
         for i in plan.fric:
             u[i] = 0.0
-        y = C @ xi + D @ u + yoff
+        y = _mv(C, xi) + _mv(D, u) + yoff
         if nf:
             alpha = np.empty(nf)
             for j, (o, diff) in enumerate(plan.vsrc):
@@ -359,14 +401,14 @@ def _run(plan, cmds, exts, t, v0):
             d = solve_friction(alpha, beta, plan.level, plan.vt, plan.branches)
             for j, i in enumerate(plan.fric):
                 u[i] = d[j]
-            y = y + D[:, plan.fric] @ d
+            y = y + _mv(D[:, plan.fric], d)
         for a in plan.axes:
             v_prev[a] = y[plan.vel[a]] if plan.vel[a] is not None else (y[plan.pos[a]] - x_prev[a]) / Ts
             x_prev[a] = y[plan.pos[a]]
             V[a][k] = v_prev[a]
         Y[k] = y
         U[k] = u
-        xi = A @ xi + B @ u
+        xi = _mv(A, xi) + _mv(B, u)
     return SimResult(t=np.asarray(t), y=Y, u=U, axes=_axis_view(plan, Y, cmds, V),
                      output_names=[p.name for p in m.outputs])
 

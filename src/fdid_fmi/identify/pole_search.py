@@ -57,10 +57,15 @@ class _Params:
         return np.array(x)
 
     def canonical(self, x):
-        """Canonical order of a pole set (same objective value)."""
+        """Canonical order of a pole set (same objective value). Poles that share their bounds
+        are sorted (real ascending, complex pairs by omega); a pair with zeta > 1 whose real
+        roots bracket the free real pole trades places with it when the result stays in bounds."""
         real, cplx, vt = self.decode(x)
-        real = sorted(real)
-        cplx = sorted(cplx)
+        if len(set(self.b.real_hz)) <= 1:
+            real = sorted(real)
+        if len(set(zip(self.b.omega_hz, self.b.zeta))) <= 1:
+            cplx = sorted(cplx)
+        xc = self.encode(real, cplx, vt)
         # the (p, omega, zeta > 1) mirror: the free real pole is the fastest of the three
         if self.nr >= 1 and self.nc >= 1:
             w, z = cplx[0]
@@ -69,12 +74,11 @@ class _Params:
                 trio = sorted([real[-1], r1, r2])
                 if trio[2] != real[-1]:
                     nw = np.sqrt(trio[0] * trio[1])
-                    cand_real = real[:-1] + [trio[2]]
-                    cand_cplx = [(nw, (trio[0] + trio[1]) / (2 * nw))] + cplx[1:]
-                    xc = self.encode(sorted(cand_real), cand_cplx, vt)
-                    if np.all(xc >= self.lo - 1e-12) and np.all(xc <= self.hi + 1e-12):
-                        return xc
-        return self.encode(real, cplx, vt)
+                    cand = self.encode(real[:-1] + [trio[2]],
+                                       [(nw, (trio[0] + trio[1]) / (2 * nw))] + cplx[1:], vt)
+                    if np.all(cand >= self.lo - 1e-12) and np.all(cand <= self.hi + 1e-12):
+                        return cand
+        return xc
 
     def polynomial(self, real, cplx):
         return rg.characteristic_polynomial(list(real) + list(self.s.locked_real_hz),
