@@ -47,6 +47,12 @@ def register(sub):
 
 
 def _ranged(trace, text, name):
+    ranges = trace.meta.get("ranges")
+    if ranges:
+        if len(ranges) != 1 or text:
+            raise InputError("give one data range per trace: --train-range / --val-range (or a single "
+                             "--range for both)", column="--range")
+        return trace.slice(*ranges[0])
     if not text:
         return trace
     try:
