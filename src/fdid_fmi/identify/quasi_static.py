@@ -22,7 +22,7 @@ def default_cutoff(Ts):
     return min(50.0, 0.1 / Ts)
 
 
-def identify_quasi_static(traces, axes=None, cutoff_hz=None, order=2):
+def identify_quasi_static(traces, axes=None, cutoff_hz=None, order=2, terms=3):
     """Quasi-static model of each axis (Eqn 3.5).
 
     Parameters
@@ -30,6 +30,11 @@ def identify_quasi_static(traces, axes=None, cutoff_hz=None, order=2):
     traces : Trace or list[Trace] (data ranges)
     axes : list of axis names (default: every axis with cmd and act)
     cutoff_hz, order : Butterworth filter of the command derivatives
+    terms : number of Taylor terms fitted (3 = the thesis's K_vel, K_acc, K_jerk). The series of
+        Eqn 3.2 converges only below the slowest closed-loop pole; a trajectory with content
+        beyond it biases a 3-term fit. Extra terms (snap, ...) absorb that truncation bias, so
+        the first three are estimated closer to the true Taylor coefficients; they are kept
+        in ``gains[axis]["K_higher"]`` and used in prediction.
 
     Returns
     -------
@@ -44,8 +49,10 @@ def identify_quasi_static(traces, axes=None, cutoff_hz=None, order=2):
     gains, metrics = {}, {}
     for ax in axes:
         Phi, Y = [], []
+        if int(terms) != terms or terms < 3:
+            raise InputError(f"terms must be an integer >= 3, got {terms!r}", column="terms")
         for tr in traces:
-            Phi.append(np.column_stack(filtered_derivatives(tr.cmd(ax), Ts, cutoff_hz, order, 3)))
+            Phi.append(np.column_stack(filtered_derivatives(tr.cmd(ax), Ts, cutoff_hz, order, int(terms))))
             Y.append(tr.error(ax))
         Phi, Y = np.vstack(Phi), np.concatenate(Y)
         if np.ptp(np.concatenate([tr.cmd(ax) for tr in traces])) <= 0:
@@ -55,6 +62,8 @@ def identify_quasi_static(traces, axes=None, cutoff_hz=None, order=2):
         scale[scale == 0] = 1.0
         theta = np.linalg.lstsq(Phi / scale, Y, rcond=None)[0] / scale
         gains[ax] = {"K_vel": float(theta[0]), "K_acc": float(theta[1]), "K_jerk": float(theta[2])}
+        if terms > 3:
+            gains[ax]["K_higher"] = [float(v) for v in theta[3:]]
         metrics[ax] = {"fit_rms_um": rms(Y - Phi @ theta) * 1e3, "error_rms_um": rms(Y) * 1e3}
     return QuasiStaticModel(Ts=Ts, gains=gains, cutoff_hz=float(cutoff_hz), order=int(order),
                             metrics=metrics,
@@ -72,9 +81,10 @@ def predict_quasi_static(model, cmds, t):
     for ax in model.axes:
         if ax not in cmds:
             raise InputError(f"no command for axis '{ax}'", column=ax)
-        v, a, j = filtered_derivatives(cmds[ax], Ts, model.cutoff_hz, model.order, 3)
         g = model.gains[ax]
-        e = g["K_vel"] * v + g["K_acc"] * a + g["K_jerk"] * j
+        k = [g["K_vel"], g["K_acc"], g["K_jerk"]] + list(g.get("K_higher", []))
+        ders = filtered_derivatives(cmds[ax], Ts, model.cutoff_hz, model.order, len(k))
+        e = sum(kk * d for kk, d in zip(k, ders))
         x = np.asarray(cmds[ax], float) - e
         vel = np.gradient(x, Ts)
         axes[ax] = {"position": x, "error": e, "velocity": vel}
