@@ -190,7 +190,7 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
 
 def identify_siso(traces, axis="x", integral_action=True, v_tilde=None, bounds=None, method="de",
                   seed=0, ma_order=1, velocity="backward", maxiter=None, popsize=None, progress=False,
-                  friction=True):
+                  friction=True, refine=True):
     """SISO rigid-body pole search with LS projection (thesis Eqn 4.10-4.17).
 
     Inputs x_r and d_nf = sat(v/v_tilde) (v: moving-average-filtered encoder derivative), output
@@ -201,7 +201,7 @@ def identify_siso(traces, axis="x", integral_action=True, v_tilde=None, bounds=N
     st = siso_structure(axis, integral_action=integral_action, ma_order=ma_order, friction=friction,
                         velocity=velocity)
     model = identify_mimo(traces, st, bounds=bounds, v_tilde=v_tilde, method=method, seed=seed,
-                          maxiter=maxiter, popsize=popsize, progress=progress)
+                          maxiter=maxiter, popsize=popsize, progress=progress, refine=refine)
     model.method = "pole-search"
     return model
 
