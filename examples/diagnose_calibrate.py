@@ -1,7 +1,7 @@
 """Calibrate the diagnosis thresholds on clean virtual-drive data.
 
 Runs every detector once (no augmentation) on clean scenarios (gentle moves, fast moves, a softer
-velocity loop, two uncoupled axes) for several seeds and prints each detector's statistic with
+velocity loop, two uncoupled axes, a P loop without integral action) for several seeds and prints each detector's statistic with
 its threshold. The thresholds in ``fdid_fmi.diagnose.*`` were set above the largest clean value
 with margin; a statistic at or above its threshold only means the effect is *tried* -- the
 held-out criterion decides whether it is kept.
@@ -16,15 +16,15 @@ from fdid_fmi.diagnose import DETECTORS
 from fdid_fmi.diagnose import augment as ag
 from fdid_fmi.diagnose.base import Context
 from fdid_fmi.diagnose.residuals import residuals
-from fdid_fmi.diagnose.scenarios import scenario
+from fdid_fmi.diagnose.scenarios import INTEGRAL_ACTION, scenario
 from fdid_fmi.identify import identify_siso
 
 warnings.simplefilter("ignore")
 rows = {}
-for name in ("clean", "clean_fast", "clean_soft", "clean_xy"):
+for name in ("clean", "clean_fast", "clean_soft", "clean_xy", "clean_p"):
     for seeds in ((1, 2), (3, 4), (5, 6)):
         tr, _ = scenario(name, seeds=seeds)
-        m = identify_siso(tr, axis="x", maxiter=30)
+        m = identify_siso(tr, axis="x", maxiter=30, integral_action=INTEGRAL_ACTION.get(name, True))
         ctx = Context(model=m, recipe=ag.recipe_from_model(m), train=ag.model_velocity_traces(m, [tr]),
                       res=[residuals(m, tr)], settings={"maxiter": 25})
         for fam, mod in DETECTORS.items():

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from fdid_fmi.diagnose import diagnose
 from fdid_fmi.diagnose.reporting import diagnosis_report, fmu_check
-from fdid_fmi.diagnose.scenarios import scenario
+from fdid_fmi.diagnose.scenarios import INTEGRAL_ACTION, scenario
 from fdid_fmi.identify import identify_siso
 from fdid_fmi.io import read_trace
 
@@ -52,10 +52,10 @@ print("| data | effects added (fitted parameters) | train RMS before → after [
       "before → after [µm] | held-out MAX before → after [µm] | FMU held-out RMS (x) [µm] | channels | time |")
 print("|---|---|---|---|---|---|---|---|")
 for name in ("clean", "clean_fast", "clean_xy", "stribeck", "backlash", "periodic", "delay", "mode",
-             "coupling"):
+             "coupling", "clean_p", "asymmetric"):
     t0 = time.perf_counter()
     tr, va = scenario(name)
-    m = identify_siso(tr, axis="x", maxiter=30)
+    m = identify_siso(tr, axis="x", maxiter=30, integral_action=INTEGRAL_ACTION.get(name, True))
     d = diagnose(m, tr, va, maxiter=20)
     t = time.perf_counter() - t0
     fmu = fmu_check(d, out / f"fmu_{name}")

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from fdid_fmi.diagnose import diagnose
-from fdid_fmi.diagnose.scenarios import scenario
+from fdid_fmi.diagnose.scenarios import INTEGRAL_ACTION, scenario
 from fdid_fmi.identify import identify_siso
 
 
@@ -20,7 +20,7 @@ def _run(name, axis="x", **kw):
     tr, va = scenario(name)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        m = identify_siso(tr, axis=axis, maxiter=30)
+        m = identify_siso(tr, axis=axis, maxiter=30, integral_action=INTEGRAL_ACTION.get(name, True))
         d = diagnose(m, tr, va, maxiter=20, **kw)
     return d, tr
 
@@ -31,7 +31,7 @@ def _val_gain(d, channel="x"):
     return 1.0 - a / b
 
 
-@pytest.mark.parametrize("name", ["clean", "clean_fast", "clean_xy"])
+@pytest.mark.parametrize("name", ["clean", "clean_fast", "clean_xy", "clean_p"])
 def test_clean_data_gets_nothing(name):
     d, _ = _run(name)
     assert d.effects_added == []
@@ -107,3 +107,11 @@ def test_cross_axis_coupling():
     assert j["effects_added"][0]["kind"] == "coupling"
     assert set(j["before"]["val"]["x"]) >= {"rms_um", "max_um"}
     assert j["after"]["val"]["x"]["rms_um"] < j["before"]["val"]["x"]["rms_um"]
+
+
+def test_asymmetric_coulomb_in_a_p_loop():
+    d, _ = _run("asymmetric")
+    assert [e["kind"] for e in d.effects_added] == ["asymmetric_friction"]
+    e = d.effects_added[0]
+    assert e["ratio_to_coulomb"] < 0          # more friction in the negative direction (40 vs 20 N)
+    assert _val_gain(d) >= 0.3                # measured: about 56 %

@@ -9,9 +9,11 @@ Stribeck (breakaway above Coulomb)
     Parameter v_s (mm/s): the Stribeck velocity minimising the LS objective of a quick refit (poles
     in a local window), over a 7-point log grid from 2 v_tilde to 0.2 max|v|, parabola-refined.
 Asymmetric Coulomb
-    Statistic: |t| of the direction-independent mean residual over the event windows (a friction
-    level that differs by direction acts as a force that does not change sign at a reversal):
-    t = mean(m_e) / (std(m_e) / sqrt(n_e)), m_e = mean residual in the window of event e.
+    Statistic: |t| of the direction-independent mean residual over moves (a friction level that
+    differs by direction acts as a force offset that does not change sign at a reversal):
+    t = mean(m_e) / (std(m_e) / sqrt(n_e)), m_e = mean residual while moving in move e. With
+    integral action in the loop the offset is rejected and nothing is left to see; P/PD loops
+    (EMPS) keep it.
 Backlash / lost motion (needs a tool-side channel)
     Statistic: |t| of the direction-aligned mean tool-side residual while moving, over moves:
     m_e = s_e * mean(r_tool over move e); lost motion b shows as m_e = -b/2 on every move.
@@ -19,9 +21,10 @@ Backlash / lost motion (needs a tool-side channel)
     is added with its own numerators (the motor-side fit is unchanged) and must beat the same
     tool-side output without the backlash input (``reference``).
 
-Thresholds (calibration: ``examples/diagnose_calibrate.py``, 12 clean virtual-drive runs --
-gentle and fast moves, a softer velocity loop, two uncoupled axes, 3 seeds each): the largest
-clean values were 2.35 (concentration; Stribeck data: 3.5-4) and 1.9 (|t| asymmetry); hence
+Thresholds (calibration: ``examples/diagnose_calibrate.py``, 15 clean virtual-drive runs --
+gentle and fast moves, a softer velocity loop, two uncoupled axes, a P loop, 3 seeds each): the largest
+clean values were 2.35 (concentration; Stribeck data: 3.5-4) and 2.0 (|t| asymmetry; the
+asymmetric P-loop data: 5.5); hence
 ``STRIBECK_RATIO`` = 2.6 and ``ASYM_T`` = 4. The clean runs have no tool channel; the tool-side
 statistic was 2.1 on the backlash data once the backlash was modelled and 5.8 on a two-mass axis
 without backlash (tool-side dynamics, not lost motion), against 73 with 20 µm backlash: hence
@@ -68,22 +71,15 @@ def _detect_axis(ctx, a):
             num += float(np.sum(r[win] ** 2))
             n_in += int(win.sum())
             den += float(np.mean(r[~win] ** 2))
-        for k, kind, s in ev:
-            seg = r[k:min(r.size, k + w)]
-            if seg.size:
-                means_even.append(float(np.mean(seg)))
+        v = command_velocity(ar.cmd, Ts)
+        moving = np.abs(v) > 0.02 * np.max(np.abs(v))
+        for seg in _moves(ev, moving, w, r.size):
+            means_even.append(float(np.mean(r[seg])))
         if ar.tool_residual is not None:
             have_tool = True
-            v = command_velocity(ar.cmd, Ts)
-            moving = np.abs(v) > 0.02 * np.max(np.abs(v))
-            starts = [k for k, kind, _ in ev if kind == "start"]
-            for i, k in enumerate(starts):
-                stop = starts[i + 1] if i + 1 < len(starts) else r.size
-                seg = np.arange(k, stop)
-                seg = seg[moving[seg]]
-                if seg.size > w:
-                    s = np.sign(np.median(v[seg]))
-                    tool_m.append(float(s * np.mean(ar.tool_residual[seg])))
+            for seg in _moves(ev, moving, w, r.size):
+                s = np.sign(np.median(v[seg]))
+                tool_m.append(float(s * np.mean(ar.tool_residual[seg])))
     cands = []
     ratio = (num / max(n_in, 1)) / den if den > 0 else 0.0
     cand = Candidate("stribeck", a, ratio, STRIBECK_RATIO,
@@ -98,7 +94,7 @@ def _detect_axis(ctx, a):
     t_even = _t(me)
     cand = Candidate("asymmetric_friction", a, abs(t_even), ASYM_T,
                      params={"mean_offset_um": float(np.mean(me) * 1e3) if me.size else 0.0},
-                     note="|t| of the direction-independent mean residual after starts/stops")
+                     note="|t| of the direction-independent mean residual over moves")
     if cand.detected and ctx.model.input_index("friction", a) is not None:
         cand.recipe = ag.add_asymmetry(ctx.recipe, a)
     elif cand.detected:
@@ -118,6 +114,19 @@ def _detect_axis(ctx, a):
             cand.reference = ag.add_tool_output(ctx.recipe, a)
         cands.append(cand)
     return cands
+
+
+def _moves(ev, moving, w, n):
+    """Sample indices of each move (from a start to the next start, moving samples only)."""
+    starts = [k for k, kind, _ in ev if kind == "start"]
+    out = []
+    for i, k in enumerate(starts):
+        stop = starts[i + 1] if i + 1 < len(starts) else n
+        seg = np.arange(k, stop)
+        seg = seg[moving[seg]]
+        if seg.size > w:
+            out.append(seg)
+    return out
 
 
 def _t(x):

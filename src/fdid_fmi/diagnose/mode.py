@@ -15,7 +15,7 @@ frequencies, parabola-refined. The augmentation searches one more complex pole p
 frequency and damping are reported. A dead time also leaves a command-coherent residual: the two
 candidates are both refitted and the better one on training data is tried first (loop.py).
 
-Threshold ``COHERENT_FRACTION`` (calibration: ``examples/diagnose_calibrate.py``, 12 clean
+Threshold ``COHERENT_FRACTION`` (calibration: ``examples/diagnose_calibrate.py``, 15 clean
 virtual-drive runs): clean runs up to 0.16 (softer velocity loop), mostly below 0.03; a 54 Hz
 mode gives about 0.4 (so does a dead time, see above).
 """

@@ -11,7 +11,7 @@ longest segment). Parameter: lambda = 1 / kappa_peak, refined by the LS objectiv
 with sin/cos(2 pi x / lambda) inputs and the poles fixed, scanned over +-12 % of the peak in 0.2 %
 steps with a parabolic refinement (the phase coherence over the whole record makes this sharp).
 
-Threshold ``PEAK_RATIO`` (calibration: ``examples/diagnose_calibrate.py``, 12 clean virtual-drive
+Threshold ``PEAK_RATIO`` (calibration: ``examples/diagnose_calibrate.py``, 15 clean virtual-drive
 runs): clean runs up to 6.4; a 40 N force of 5 mm period gives about 140.
 """
 from __future__ import annotations

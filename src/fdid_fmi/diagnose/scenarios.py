@@ -22,7 +22,13 @@ scenario           undeclared effect
                    motor-side channels only)
 ``coupling``       two axes; force on x = 0.02 kg x (commanded moves of y), i.e. 0.02 N per mm/s^2
 ``clean_xy``       the same two axes without the coupling
+``asymmetric``     P position loop without integral action (Ti = inf), Coulomb 20 N in the
+                   positive and 40 N in the negative direction (fit with integral_action=False)
+``clean_p``        the same P loop with symmetric Coulomb friction
 =================  ===========================================================================
+
+With integral action in the loop an asymmetric Coulomb level is a constant force while moving
+that the integrator rejects: it leaves nothing in the position to diagnose, hence the P loop.
 """
 from __future__ import annotations
 
@@ -45,7 +51,10 @@ SCENARIOS = {
     "mode": (dict(mass=70.0, tool_mass=30.0, mode_hz=55.0, mode_zeta=0.02), FAST),
     "coupling": ("xy", 0.02),
     "clean_xy": ("xy", 0.0),
+    "asymmetric": (dict(Ti=float("inf"), coulomb=20.0, coulomb_neg=40.0), {}),
+    "clean_p": (dict(Ti=float("inf")), {}),
 }
+INTEGRAL_ACTION = {"asymmetric": False, "clean_p": False}
 
 
 def _measured_only(tr, keep_roles=None):
