@@ -73,7 +73,7 @@ class Diagnosis:
 
     def to_json(self):
         """The JSON summary (``effects_added``, ``before`` / ``after`` per trace and axis)."""
-        from ..model import _jsonable
+        from ..report import _jsonable
         return _jsonable({
             "effects_added": self.effects_added,
             "before": _per_axis(self.before), "after": _per_axis(self.after),
