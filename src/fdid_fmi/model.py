@@ -184,8 +184,8 @@ class DriveModel:
             "A": self.A.tolist(), "B": self.B.tolist(), "C": self.C.tolist(), "D": self.D.tolist(),
             "inputs": [asdict(p) for p in self.inputs], "outputs": [asdict(p) for p in self.outputs],
             "poles": [[p.real, p.imag] for p in self.poles],
-            "identification": _jsonable(self.identification), "metrics": _jsonable(self.metrics),
-            "effects": _jsonable(self.effects), "provenance": _jsonable(self.provenance),
+            "identification": jsonable(self.identification), "metrics": jsonable(self.metrics),
+            "effects": jsonable(self.effects), "provenance": jsonable(self.provenance),
         }
 
     def save(self, path):
@@ -262,8 +262,8 @@ class QuasiStaticModel:
     def to_dict(self):
         return {"format": FORMAT, "format_version": FORMAT_VERSION, "kind": "quasi_static",
                 "Ts": self.Ts, "gains": self.gains, "cutoff_hz": self.cutoff_hz, "order": self.order,
-                "method": self.method, "metrics": _jsonable(self.metrics),
-                "provenance": _jsonable(self.provenance)}
+                "method": self.method, "metrics": jsonable(self.metrics),
+                "provenance": jsonable(self.provenance)}
 
     def save(self, path):
         Path(path).write_text(json.dumps(self.to_dict(), indent=1))
@@ -314,18 +314,19 @@ def _find(ports, kind, axis, name):
     return None
 
 
-def _jsonable(obj):
-    """Recursively turn numpy / complex values into JSON-friendly ones."""
+def jsonable(obj):
+    """Recursively turn numpy / complex values into JSON-friendly ones (non-finite -> None)."""
     if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
+        return {str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
+        return [jsonable(v) for v in obj]
     if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
+        return jsonable(obj.tolist())
     if isinstance(obj, (complex, np.complexfloating)):
         return [float(obj.real), float(obj.imag)]
     if isinstance(obj, np.integer):
         return int(obj)
-    if isinstance(obj, np.floating):
-        return float(obj)
+    if isinstance(obj, (float, np.floating)):
+        x = float(obj)
+        return x if np.isfinite(x) else None
     return obj

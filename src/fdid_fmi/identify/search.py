@@ -104,39 +104,30 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
         maxiter = maxiter or 1500
         total = maxiter
     cnt = _Counter(fun, progress, total, f"pole search ({method})")
+
+    def local(x0):
+        res = optimize.minimize(cnt, x0, method="L-BFGS-B", bounds=bounds, options={"maxiter": 200})
+        return res.fun, res.x
+
     pts = []
     try:
-        if method == "de":
-            res = optimize.differential_evolution(
-                cnt, bounds, seed=seed, popsize=popsize, maxiter=maxiter, tol=1e-7, atol=0,
-                init="sobol", polish=False, updating="deferred", mutation=(0.5, 1.0),
-                recombination=0.8)
-            pts.extend(zip(res.population_energies, res.population))
-            best = (res.fun, res.x)
-            if local_polish:
-                loc = optimize.minimize(cnt, res.x, method="L-BFGS-B", bounds=bounds,
-                                        options={"maxiter": 200})
-                if loc.fun < best[0]:
-                    best = (loc.fun, loc.x)
-                pts.append(best)
-        elif method == "multistart":
+        if method == "multistart":
             sob = qmc.Sobol(dim, seed=seed)
             X0 = qmc.scale(sob.random(int(2 ** np.ceil(np.log2(starts))))[:starts], lo, hi)
-            best = (np.inf, None)
-            for x0 in X0:
-                loc = optimize.minimize(cnt, x0, method="L-BFGS-B", bounds=bounds,
-                                        options={"maxiter": 200})
-                pts.append((loc.fun, loc.x))
-                if loc.fun < best[0]:
-                    best = (loc.fun, loc.x)
+            pts = [local(x0) for x0 in X0]
+            best = min(pts, key=lambda p: p[0])
         else:
-            res = optimize.direct(cnt, bounds, maxfun=maxiter, locally_biased=True)
+            if method == "de":
+                res = optimize.differential_evolution(
+                    cnt, bounds, seed=seed, popsize=popsize, maxiter=maxiter, tol=1e-7, atol=0,
+                    init="sobol", polish=False, updating="deferred", mutation=(0.5, 1.0),
+                    recombination=0.8)
+                pts.extend(zip(res.population_energies, res.population))
+            else:
+                res = optimize.direct(cnt, bounds, maxfun=maxiter, locally_biased=True)
             best = (res.fun, res.x)
             if local_polish:
-                loc = optimize.minimize(cnt, res.x, method="L-BFGS-B", bounds=bounds,
-                                        options={"maxiter": 200})
-                if loc.fun < best[0]:
-                    best = (loc.fun, loc.x)
+                best = min(best, local(res.x), key=lambda p: p[0])
             pts.append(best)
     finally:
         cnt.close()
