@@ -29,6 +29,7 @@ class Segment:
     dw: np.ndarray         # (m,) ramp increment at the start
     vel: dict              # axis -> measured velocity (mm/s), drives friction
     pos: dict              # axis -> measured position (mm), drives position features
+    cmd: dict              # axis -> commanded position (mm), for features with source "command"
     Z: np.ndarray          # (p, N) measured outputs
     R: int = 0             # run-up samples prepended to W, vel, pos (not fitted)
 
@@ -143,7 +144,7 @@ class LSProblem:
         Z = np.zeros((self.p, N))
         for j, o in enumerate(s.outputs):
             Z[j] = _measured_output(tr, o)
-        return Segment(W=W, wref=wref, dw=dw, vel=vel, pos=pos, Z=Z, R=R)
+        return Segment(W=W, wref=wref, dw=dw, vel=vel, pos=pos, cmd=ext, Z=Z, R=R)
 
     def fill_nonlinear_inputs(self, sg, v_tilde, override=None):
         """Friction and feature rows of the inputs for the given v_tilde (per axis).
@@ -159,7 +160,8 @@ class LSProblem:
             elif ins.kind == "friction":
                 W[i] = np.clip(sg.vel[ins.axis] / v_tilde[ins.axis], -1.0, 1.0)
             elif ins.kind == "feature":
-                W[i] = feature_signal(ins.params, sg.vel[ins.axis], sg.pos[ins.axis])
+                src = sg.cmd if ins.params.get("source", "command") == "command" else sg.pos
+                W[i] = feature_signal(ins.params, sg.vel[ins.axis], src[ins.axis])
         return W
 
     # ------------------------------------------------------------ projection
@@ -248,8 +250,8 @@ class LSProblem:
 
 
 def feature_signal(params, vel, pos):
-    """Feature input over a record from measured velocity / position (same functions as the
-    simulator's ``feature_value``, applied to measured signals)."""
+    """Feature input over a record from measured velocity and the position its ``source`` names
+    (the simulator's ``feature_value``, applied to measured signals)."""
     f = params["function"]
     if f in ("sin_position", "cos_position"):
         arg = 2 * np.pi * pos / params["period_mm"]

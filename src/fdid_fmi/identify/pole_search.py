@@ -145,7 +145,7 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
         xbest, nfev, fun = par.canonical(res.x), res.nfev, res.fun
         minima = [(f, par.canonical(x)) for f, x in res.minima]
     real, cplx, vt = par.decode(xbest)
-    fit, residuals = prob.project(par.polynomial(real, cplx), vt, want_residuals=True)
+    fit, _ = prob.project(par.polynomial(real, cplx), vt, want_residuals=True)  # exact RMS
     if not fit.feasible:
         raise InputError("no feasible model in the search space (every candidate had a friction gain "
                          "of the wrong sign); widen the bounds or check the friction structure",
@@ -184,7 +184,6 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
                   "t_start_s": float(tr.t[0]), "t_stop_s": float(tr.t[-1]), "samples": tr.n}
                  for tr in traces],
     }
-    model._residuals = residuals  # training LS residuals (not saved)
     return model
 
 
