@@ -36,6 +36,9 @@ from .errors import InputError
 from .model import DriveModel, QuasiStaticModel
 from .trace import Trace
 
+_TOL = 1e-12
+
+
 def _mv(M, v):
     """M @ v summed like the C core (numpy's pairwise order: np.add.reduce over each row)."""
     return np.add.reduce(np.ascontiguousarray(M) * v, axis=1) if M.shape[1] else np.zeros(M.shape[0])
@@ -66,9 +69,6 @@ def _lu_solve(M, r):
             acc -= M[q][j] * r[j]
         r[q] = acc / M[q][q]
     return r
-
-
-_TOL = 1e-12
 
 
 @dataclass
@@ -236,26 +236,26 @@ def run_up(cmds, Ts, max_seconds=2.0):
     R : int, run-up length in samples (0: none needed or not plausible)
     ext : dict axis -> extended commands (run-up + commands)
     """
-    R = 0
-    for c in cmds.values():
+    vertex = {}                          # axis -> (du, dd, k*) of a parabola whose rest point is past
+    for a, c in cmds.items():
         if len(c) < 3:
             continue
         dd = 0.5 * (c[2] - 2 * c[1] + c[0])
         du = c[1] - c[0] - dd
-        if dd != 0 and du != 0 and np.sign(dd) == np.sign(du):
-            kv = du / (2 * dd)          # vertex at k = -kv
-            if kv * Ts <= max_seconds:
-                R = max(R, int(np.ceil(kv)))
+        if dd != 0 and du != 0 and np.sign(dd) == np.sign(du) and du / (2 * dd) * Ts <= max_seconds:
+            vertex[a] = (du, dd, du / (2 * dd))    # vertex at k = -k*
+    R = int(np.ceil(max(v[2] for v in vertex.values()))) if vertex else 0
     if R == 0:
         return 0, dict(cmds)
-    ext = {}
     k = np.arange(-R, 0, dtype=float)
+    ext = {}
     for a, c in cmds.items():
-        dd = 0.5 * (c[2] - 2 * c[1] + c[0])
-        du = c[1] - c[0] - dd
-        kv = du / (2 * dd) if dd != 0 else np.inf
-        kk = np.maximum(k, -kv) if np.isfinite(kv) and np.sign(dd) == np.sign(du) else np.zeros_like(k)
-        ext[a] = np.concatenate([c[0] + kk * du + kk * kk * dd, c])
+        if a in vertex:
+            du, dd, kv = vertex[a]
+            kk = np.maximum(k, -kv)              # at rest before its vertex
+            ext[a] = np.concatenate([c[0] + kk * du + kk * kk * dd, c])
+        else:
+            ext[a] = np.concatenate([np.full(R, c[0]), c])
     return R, ext
 
 
