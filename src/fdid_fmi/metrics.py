@@ -18,6 +18,12 @@ def rms_max_um(x):
     return {"rms_um": rms(x) * 1e3, "max_um": float(np.max(np.abs(x))) * 1e3 if x.size else float("nan")}
 
 
+def measured_position(trace, axis, side="motor"):
+    """The measured position a model's position output is compared with: the motor encoder
+    (``act``) or, for ``side="tool"``, the tool-side channel."""
+    return trace.get(axis, "tool") if side == "tool" else trace.act(axis)
+
+
 def contour_error(cmd_xy, act_xy, window=None):
     """Contour error: minimum normal distance from each actual point to the commanded polyline.
 

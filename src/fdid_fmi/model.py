@@ -122,6 +122,12 @@ class DriveModel:
     def output_index(self, kind, axis=None, name=None):
         return _find(self.outputs, kind, axis, name)
 
+    def position_side(self, axis):
+        """``"motor"`` or ``"tool"``: which side the axis's position/error outputs describe (a
+        model fitted on tool-side signals only predicts the tool side)."""
+        i = self.output_index("position", axis)
+        return self.outputs[i].params.get("side", "motor") if i is not None else "motor"
+
     def validate(self):
         """Check shapes, kinds and per-axis completeness; raise InputError if inconsistent."""
         n, m, p = self.A.shape[0], self.B.shape[1], self.C.shape[0]

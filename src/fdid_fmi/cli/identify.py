@@ -128,7 +128,7 @@ def identify_from_args(trace, args, progress=True):
 
 def summary(model, trace=None):
     """Lines describing a model (and its free-run discrepancy on ``trace``)."""
-    from ..metrics import prediction_table
+    from ..metrics import measured_position, prediction_table
     from ..simulate import simulate
     lines = [f"method: {model.method}"]
     if isinstance(model, DriveModel):
@@ -155,8 +155,10 @@ def summary(model, trace=None):
         lines.append(f"  {'axis':<5} {'e RMS um':>10} {'e MAX um':>10} {'pred-err RMS um':>16} "
                      f"{'pred-err MAX um':>16} {'% of RMS':>9}")
         for ax in model.axes:
-            tb = prediction_table(trace.error(ax), sim.axes[ax]["error"])
-            lines.append(f"  {ax:<5} {tb['actual']['rms_um']:10.3f} {tb['actual']['max_um']:10.3f} "
+            side = model.position_side(ax) if isinstance(model, DriveModel) else "motor"
+            e = trace.cmd(ax) - measured_position(trace, ax, side)
+            tb = prediction_table(e, sim.axes[ax]["error"])
+            lines.append(f"  {ax + (' (tool)' if side == 'tool' else ''):<5} {tb['actual']['rms_um']:10.3f} {tb['actual']['max_um']:10.3f} "
                          f"{tb['discrepancy']['rms_um']:16.3f} {tb['discrepancy']['max_um']:16.3f} "
                          f"{tb['discrepancy_pct_of_rms']:9.3f}")
     return lines

@@ -354,7 +354,10 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
                     f"by 1e-12 mm (friction stick-slip amplifies rounding on this trace), so no "
                     f"implementation can agree to {tolerance_mm:g} mm here")
         res.problems.append(msg)
-    act = {a: np.asarray(trace.act(a), float) for a in axes if trace.has(a, "act")}
+    from ..metrics import measured_position
+    sides = {a: model.position_side(a) for a in axes}
+    act = {a: np.asarray(measured_position(trace, a, sides[a]), float) for a in axes
+           if trace.has(a, "tool" if sides[a] == "tool" else "act")}
     for a, x in act.items():
         e_meas = cmds[a] - x
         d = (out[f"{a}_e"] - e_meas) * 1e3

@@ -317,7 +317,8 @@ def assemble(structure: Structure, fit, Ts):
             d[ic] += 1.0
             rows_C.append(c)
             rows_D.append(d)
-            outs.append(Port(name=name, unit="mm", kind=kind, axis=ax, description=desc))
+            outs.append(Port(name=name, unit="mm", kind=kind, axis=ax, description=desc,
+                             params=dict(outs[src].params)))
 
         if "error" in kinds and "position" not in kinds:
             derived(names["error"], "position", f"{ax}_pos", "predicted position x = x_r - e")
@@ -332,7 +333,7 @@ def assemble(structure: Structure, fit, Ts):
             k = next(k for k, p in enumerate(outs) if p.axis == ax and p.kind == "tool_position")
             rows_C.append(rows_C[k].copy())
             rows_D.append(rows_D[k].copy())
-            outs.append(Port(name=f"{ax}_pos", unit="mm", kind="position", axis=ax,
+            outs.append(Port(name=f"{ax}_pos", unit="mm", kind="position", axis=ax, params={"side": "tool"},
                              description="predicted position (tool side: no motor-side output)"))
         if "error" not in {p.kind for p in outs if p.axis == ax}:
             derived(next(k for k, p in enumerate(outs) if p.axis == ax and p.kind == "position"),
