@@ -44,7 +44,8 @@ def _emps_case(folder):
     from ..io import read_trace
     folder = Path(folder)
     train = read_trace(folder / "DATA_EMPS.mat")
-    val = {"DATA_EMPS_PULSES": read_trace(folder / "DATA_EMPS_PULSES.mat")}
+    # the PULSES record carries a force the qg-only model cannot know (see `fdid diagnose`)
+    val = {"DATA_EMPS (training)": train, "DATA_EMPS_PULSES": read_trace(folder / "DATA_EMPS_PULSES.mat")}
     return "EMPS drive benchmark (real data)", {"x": train}, val, {"integral_action": False}
 
 
