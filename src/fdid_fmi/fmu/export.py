@@ -5,8 +5,9 @@ FMU layout (FMI 2.0)::
     modelDescription.xml
     binaries/linux64/<id>.so        (gcc)
     binaries/win64/<id>.dll         (x86_64-w64-mingw32-gcc, when asked for)
-    sources/                        generic C (fdid_core.c, fmi2Functions.c, fdid_model.h),
-                                    generated model_data.{h,c}, the FMI headers
+    sources/                        generic C (fdid_core.c, fdid_instance.c, fmi2Functions.c,
+                                    fdid_model.h, fdid_instance.h), generated model_data.{h,c},
+                                    the FMI headers
     resources/model.json            the DriveModel (used by ``fdid validate`` as the reference)
 
 FMI 3.0 is the same with ``binaries/x86_64-linux``/``x86_64-windows``, ``fmi3Functions.c``
@@ -29,8 +30,8 @@ from .codegen import model_data_c, model_data_h
 from .description import model_description_fmi2, model_description_fmi3
 from .layout import build_layout, check_exportable
 
-CORE_SOURCES = ("fdid_core.c",)
-HEADERS = ("fdid_model.h",)
+CORE_SOURCES = ("fdid_core.c", "fdid_instance.c")   # written once, compiled into every FMU
+HEADERS = ("fdid_model.h", "fdid_instance.h")
 FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
                3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")}
 PLUMBING = {2: "fmi2Functions.c", 3: "fmi3Functions.c"}

@@ -1,0 +1,369 @@
+/* fdid_instance.c -- the instance bookkeeping of an fdid-fmi FMU (written once for FMI 2 and 3).
+ *
+ * See fdid_instance.h. No FMI types here: the wrappers in fmi2Functions.c / fmi3Functions.c
+ * translate their arguments and return these status codes as fmi2Status / fmi3Status.
+ */
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+#include <stdlib.h>
+
+#include "model_data.h"
+#include "fdid_instance.h"
+
+static const char *const CATEGORY_NAMES[FDID_N_CAT] = {"logStatusWarning", "logStatusError",
+                                                       "logStatusFatal", "logCalls"};
+
+typedef struct {
+    unsigned magic;
+    int mode;
+    double start_time;
+    FdidFlags flags;
+    size_t nbuf;
+    /* followed by nbuf doubles */
+} Snapshot;
+
+/* serialized form: GUID (64 bytes, NUL-padded) then the snapshot bytes */
+#define GUID_BYTES 64
+
+/* ------------------------------------------------------------------ logging */
+void fdid_log(const FdidInstance *I, int status, int cat, const char *fmt, ...) {
+    char buf[1024];
+    va_list ap;
+    if (!I || !I->api->emit || !I->log_on[cat]) return;
+    va_start(ap, fmt);
+    vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    I->api->emit(I, status, CATEGORY_NAMES[cat], buf);
+}
+
+int fdid_fail(FdidInstance *I, const char *fmt, ...) {
+    char buf[900];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    fdid_log(I, FDID_ERROR, FDID_CAT_ERROR, "%s", buf);
+    if (I->mode != FDID_ST_FATAL) I->mode = FDID_ST_ERROR;
+    return FDID_ERROR;
+}
+
+static const char *state_name(const FdidInstance *I) {
+    switch (I->mode) {
+    case FDID_ST_INSTANTIATED: return "instantiated";
+    case FDID_ST_INIT: return "initialization mode";
+    case FDID_ST_STEP: return I->api->step_mode_name;
+    case FDID_ST_TERMINATED: return "terminated";
+    case FDID_ST_ERROR: return "error";
+    default: return "fatal";
+    }
+}
+
+int fdid_begin(FdidInstance *I, const char *fn, int mask) {
+    if (!I) return 0;
+    fdid_log(I, FDID_OK, FDID_CAT_CALLS, "%s", fn);
+    if (I->mode & mask) return 1;
+    fdid_fail(I, "%s may not be called in the %s state", fn, state_name(I));
+    return 0;
+}
+
+int fdid_set_debug_logging(FdidInstance *I, const char *fn, int on, size_t n, const char *const categories[]) {
+    size_t i;
+    int k;
+    if (!I || I->mode == FDID_ST_FATAL) return FDID_ERROR;
+    if (n == 0) {
+        for (k = 0; k < FDID_N_CAT; k++) I->log_on[k] = on ? 1 : 0;
+        return FDID_OK;
+    }
+    if (!categories) return fdid_fail(I, "%s: categories is NULL", fn);
+    for (i = 0; i < n; i++) {
+        int found = 0;
+        if (I->api->accepts_log_all && categories[i] && strcmp(categories[i], "logAll") == 0) {
+            for (k = 0; k < FDID_N_CAT; k++) I->log_on[k] = on ? 1 : 0;
+            continue;
+        }
+        for (k = 0; k < FDID_N_CAT; k++) {
+            if (categories[i] && strcmp(categories[i], CATEGORY_NAMES[k]) == 0) {
+                I->log_on[k] = on ? 1 : 0;
+                found = 1;
+            }
+        }
+        if (!found)
+            return fdid_fail(I, "%s: unknown log category '%s'", fn, categories[i] ? categories[i] : "(null)");
+    }
+    return FDID_OK;
+}
+
+/* ------------------------------------------------------------------ memory, life cycle */
+/* the master's memory functions when it gave both, else the C library's */
+static int use_callbacks(const FdidInstance *I) { return I->allocate_memory && I->free_memory; }
+
+void *fdid_alloc(const FdidInstance *I, size_t n, size_t size) {
+    if (use_callbacks(I)) return I->allocate_memory(n, size);
+    return calloc(n, size);
+}
+
+void fdid_free(const FdidInstance *I, void *p) {
+    if (!p) return;
+    if (use_callbacks(I)) I->free_memory(p);
+    else free(p);
+}
+
+FdidInstance *fdid_instantiate(const FdidInstance *proto, size_t size, const char *fn) {
+    size_t nbuf = fdid_buffer_size(&fdid_model), nname = strlen(proto->name) + 1;
+    FdidInstance *I = (FdidInstance *)fdid_alloc(proto, 1, size);
+    double *buf = (double *)fdid_alloc(proto, nbuf ? nbuf : 1, sizeof(double));
+    char *name = (char *)fdid_alloc(proto, nname, 1);
+    if (!I || !buf || !name) {
+        fdid_free(proto, I);
+        fdid_free(proto, buf);
+        fdid_free(proto, name);
+        fdid_log(proto, FDID_FATAL, FDID_CAT_FATAL, "%s: out of memory", fn);
+        return NULL;
+    }
+    memcpy(I, proto, size);
+    memcpy(name, proto->name, nname);
+    I->name = name;
+    I->mode = FDID_ST_INSTANTIATED;
+    I->start_time = 0.0;
+    fdid_state_bind(&I->s, &fdid_model, buf);
+    fdid_state_defaults(&I->s);
+    return I;
+}
+
+void fdid_free_instance(FdidInstance *I, const char *fn) {
+    FdidInstance copy;
+    if (!I) return;
+    fdid_log(I, FDID_OK, FDID_CAT_CALLS, "%s", fn);
+    copy = *I; /* the memory functions, for freeing I itself */
+    fdid_free(I, I->s.buf);
+    fdid_free(I, I->name);
+    fdid_free(&copy, I);
+}
+
+/* ------------------------------------------------------------------ state machine */
+int fdid_set_start_time(FdidInstance *I, const char *fn, double start_time) {
+    if (!fdid_is_finite(start_time)) return fdid_fail(I, "%s: start time is not finite", fn);
+    I->start_time = start_time;
+    return FDID_OK;
+}
+
+void fdid_enter_initialization(FdidInstance *I) {
+    I->mode = FDID_ST_INIT;
+    I->s.f.init_dirty = 1;
+}
+
+void fdid_exit_initialization(FdidInstance *I) {
+    fdid_initialize(&I->s); /* steady ramp from the inputs and parameters set so far */
+    I->mode = FDID_ST_STEP;
+}
+
+void fdid_terminate(FdidInstance *I) { I->mode = FDID_ST_TERMINATED; }
+
+void fdid_reset(FdidInstance *I) {
+    fdid_state_defaults(&I->s);
+    I->start_time = 0.0;
+    I->mode = FDID_ST_INSTANTIATED;
+}
+
+double fdid_time(const FdidInstance *I) {
+    return I->start_time + (double)I->s.f.steps * fdid_model.Ts;
+}
+
+/* ------------------------------------------------------------------ get / set */
+static const FdidVar *lookup(FdidInstance *I, const char *fn, unsigned vr, int type) {
+    const FdidVar *v;
+    if (vr >= (unsigned)fdid_model.n_vars) {
+        fdid_fail(I, "%s: unknown value reference %u (the model has %d variables)", fn, vr, fdid_model.n_vars);
+        return NULL;
+    }
+    v = &fdid_model.vars[vr];
+    if (v->type != type) {
+        fdid_fail(I, "%s: value reference %u (%s) is not of this type", fn, vr, v->name);
+        return NULL;
+    }
+    return v;
+}
+
+/* checks and stores one value; returns 0 after logging when refused */
+static int set_value(FdidInstance *I, const char *fn, const FdidVar *v, double x) {
+    FdidState *S = &I->s;
+    int a = v->index;
+    if (!fdid_is_finite(x)) {
+        fdid_fail(I, "%s: %s must be finite, got a NaN or infinite value", fn, v->name);
+        return 0;
+    }
+    switch (v->role) {
+    case FDID_V_CMD: S->cmd[a] = x; break;
+    case FDID_V_EXT: S->ext[a] = x; break;
+    case FDID_P_LEVEL:
+        if (x < 0.0) {
+            fdid_fail(I, "%s: %s must be >= 0, got %g", fn, v->name, x);
+            return 0;
+        }
+        S->level[a] = x;
+        break;
+    case FDID_P_VTILDE:
+        if (!(x > 0.0)) {
+            fdid_fail(I, "%s: %s must be > 0 mm/s, got %g", fn, v->name, x);
+            return 0;
+        }
+        S->vtilde[a] = x;
+        break;
+    case FDID_P_ON: S->on[a] = x != 0.0 ? 1.0 : 0.0; break;
+    case FDID_P_V0:
+        if (I->mode == FDID_ST_STEP || I->mode == FDID_ST_TERMINATED) {
+            fdid_fail(I, "%s: %s is a fixed parameter; set it before %sExitInitializationMode", fn, v->name,
+                      I->api->prefix);
+            return 0;
+        }
+        S->v0[a] = x;
+        break;
+    default:
+        fdid_fail(I, "%s: %s is an output or local variable and cannot be set", fn, v->name);
+        return 0;
+    }
+    /* before the first step, inputs and parameters define the initial state */
+    if (!S->f.started) S->f.init_dirty = 1;
+    S->f.out_dirty = 1;
+    return 1;
+}
+
+int fdid_get_real(FdidInstance *I, const char *fn, unsigned vr, double *value) {
+    const FdidVar *v = lookup(I, fn, vr, FDID_T_REAL);
+    if (!v) return 0;
+    *value = fdid_var_value(&I->s, v);
+    return 1;
+}
+
+int fdid_get_boolean(FdidInstance *I, const char *fn, unsigned vr, int *value) {
+    const FdidVar *v = lookup(I, fn, vr, FDID_T_BOOLEAN);
+    if (!v) return 0;
+    *value = fdid_var_value(&I->s, v) != 0.0;
+    return 1;
+}
+
+int fdid_set_real(FdidInstance *I, const char *fn, unsigned vr, double value) {
+    const FdidVar *v = lookup(I, fn, vr, FDID_T_REAL);
+    return v && set_value(I, fn, v, value);
+}
+
+int fdid_set_boolean(FdidInstance *I, const char *fn, unsigned vr, int value) {
+    const FdidVar *v = lookup(I, fn, vr, FDID_T_BOOLEAN);
+    return v && set_value(I, fn, v, value ? 1.0 : 0.0);
+}
+
+/* ------------------------------------------------------------------ FMU state */
+static size_t snapshot_bytes(void) {
+    return sizeof(Snapshot) + fdid_buffer_size(&fdid_model) * sizeof(double);
+}
+
+static int snapshot_valid(const FdidInstance *I, const Snapshot *s) {
+    return s && s->magic == I->api->snapshot_magic && s->nbuf == fdid_buffer_size(&fdid_model) &&
+           (s->mode & FDID_ANY_STATE);
+}
+
+int fdid_get_state(FdidInstance *I, const char *fn, void **state) {
+    Snapshot *s;
+    if (!state) return fdid_fail(I, "%s: NULL argument", fn);
+    s = (Snapshot *)*state;
+    if (s && !snapshot_valid(I, s)) return fdid_fail(I, "%s: *%s is not a state of this FMU", fn, I->api->state_arg);
+    if (!s) {
+        s = (Snapshot *)fdid_alloc(I, 1, snapshot_bytes());
+        if (!s) return fdid_fail(I, "%s: out of memory", fn);
+    }
+    s->magic = I->api->snapshot_magic;
+    s->mode = I->mode;
+    s->start_time = I->start_time;
+    s->flags = I->s.f;
+    s->nbuf = I->s.nbuf;
+    memcpy((char *)s + sizeof(Snapshot), I->s.buf, I->s.nbuf * sizeof(double));
+    *state = s;
+    return FDID_OK;
+}
+
+int fdid_set_state(FdidInstance *I, const char *fn, const void *state) {
+    const Snapshot *s = (const Snapshot *)state;
+    if (!snapshot_valid(I, s)) return fdid_fail(I, "%s: not a state of this FMU", fn);
+    I->mode = s->mode;
+    I->start_time = s->start_time;
+    I->s.f = s->flags;
+    memcpy(I->s.buf, (const char *)s + sizeof(Snapshot), I->s.nbuf * sizeof(double));
+    return FDID_OK;
+}
+
+int fdid_free_state(FdidInstance *I, const char *fn, void **state) {
+    if (!state) return fdid_fail(I, "%s: NULL argument", fn);
+    fdid_free(I, *state);
+    *state = NULL;
+    return FDID_OK;
+}
+
+int fdid_serialized_size(FdidInstance *I, const char *fn, const void *state, size_t *size) {
+    if (!size) return fdid_fail(I, "%s: NULL argument", fn);
+    if (!snapshot_valid(I, (const Snapshot *)state)) return fdid_fail(I, "%s: not a state of this FMU", fn);
+    *size = GUID_BYTES + snapshot_bytes();
+    return FDID_OK;
+}
+
+int fdid_serialize(FdidInstance *I, const char *fn, const void *state, void *bytes, size_t size) {
+    unsigned char *out = (unsigned char *)bytes;
+    if (!out) return fdid_fail(I, "%s: NULL argument", fn);
+    if (!snapshot_valid(I, (const Snapshot *)state)) return fdid_fail(I, "%s: not a state of this FMU", fn);
+    if (size < GUID_BYTES + snapshot_bytes())
+        return fdid_fail(I, "%s: buffer of %lu bytes is too small (%lu needed)", fn, (unsigned long)size,
+                         (unsigned long)(GUID_BYTES + snapshot_bytes()));
+    memset(out, 0, GUID_BYTES);
+    strncpy((char *)out, fdid_model.guid, GUID_BYTES - 1);
+    memcpy(out + GUID_BYTES, state, snapshot_bytes());
+    return FDID_OK;
+}
+
+int fdid_deserialize(FdidInstance *I, const char *fn, const void *bytes, size_t size, void **state) {
+    const unsigned char *in = (const unsigned char *)bytes;
+    Snapshot *s;
+    char guid[GUID_BYTES];
+    if (!in || !state) return fdid_fail(I, "%s: NULL argument", fn);
+    if (size != GUID_BYTES + snapshot_bytes())
+        return fdid_fail(I, "%s: %lu bytes given, a state of this FMU has %lu", fn, (unsigned long)size,
+                         (unsigned long)(GUID_BYTES + snapshot_bytes()));
+    memcpy(guid, in, GUID_BYTES);
+    guid[GUID_BYTES - 1] = '\0';
+    if (strcmp(guid, fdid_model.guid) != 0)
+        return fdid_fail(I, "%s: the state belongs to another FMU (GUID %s)", fn, guid);
+    s = (Snapshot *)*state;
+    if (s && !snapshot_valid(I, s)) return fdid_fail(I, "%s: *%s is not a state of this FMU", fn, I->api->state_arg);
+    if (!s) {
+        s = (Snapshot *)fdid_alloc(I, 1, snapshot_bytes());
+        if (!s) return fdid_fail(I, "%s: out of memory", fn);
+    }
+    memcpy(s, in + GUID_BYTES, snapshot_bytes());
+    if (!snapshot_valid(I, s)) {
+        if (!*state) fdid_free(I, s);
+        return fdid_fail(I, "%s: corrupt state", fn);
+    }
+    *state = s;
+    return FDID_OK;
+}
+
+/* ------------------------------------------------------------------ co-simulation */
+int fdid_do_step(FdidInstance *I, const char *fn, double t_comm, double h) {
+    double Ts = fdid_model.Ts, t = fdid_time(I), q, tol;
+    long long k, nsteps;
+    if (!fdid_is_finite(h) || !(h > 0.0))
+        return fdid_fail(I, "%s: communication step size must be a positive number, got %g s", fn, h);
+    if (!fdid_is_finite(t_comm)) return fdid_fail(I, "%s: currentCommunicationPoint is not finite", fn);
+    q = h / Ts;
+    if (q > 1e15) return fdid_fail(I, "%s: communication step size %g s is too large", fn, h);
+    nsteps = (long long)(q + 0.5);
+    if (nsteps < 1 || (h - (double)nsteps * Ts > 1e-9 * h) || ((double)nsteps * Ts - h > 1e-9 * h))
+        return fdid_fail(I, "%s: communication step size %.17g s is not an integer multiple of the "
+                            "model sample time Ts = %.17g s (relative tolerance 1e-9)", fn, h, Ts);
+    tol = 1e-6 * Ts + 1e-9 * (t < 0 ? -t : t);
+    if (t_comm - t > tol || t - t_comm > tol)
+        return fdid_fail(I, "%s: currentCommunicationPoint %.17g s differs from the FMU time %.17g s", fn, t_comm,
+                         t);
+    for (k = 0; k < nsteps; k++) fdid_advance(&I->s);
+    I->s.f.started = 1;
+    return FDID_OK;
+}
