@@ -1,9 +1,9 @@
 /* fdid_model.h -- model-independent types and the simulation core of an fdid-fmi FMU.
  *
  * The FMU is split like the modelica Reference-FMUs: FMI plumbing written once
- * (fmi2Functions.c, fmi3Functions.c), the simulation semantics written once (fdid_core.c),
- * and one generated file per model (model_data.c) holding the matrices, the port table
- * and the variable table as constant data.
+ * (fdid_instance.c, wrapped by fmi2Functions.c and fmi3Functions.c), the simulation
+ * semantics written once (fdid_core.c), and one generated file per model (model_data.c)
+ * holding the matrices, the port table and the variable table as constant data.
  *
  * Semantics: exactly those of fdid_fmi.simulate (the numpy reference simulator):
  *   offsets     commands enter as deviations from their value at initialisation, u_ref;
