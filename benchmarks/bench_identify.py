@@ -12,7 +12,6 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -25,6 +24,7 @@ from fdid_fmi.signals import measured_velocity  # noqa: E402
 from fdid_fmi.simulate import simulate  # noqa: E402
 from fdid_fmi.virtual import MachineConfig, presets, simulate_machine  # noqa: E402
 from fdid_fmi.virtual import trajectories as tj  # noqa: E402
+from timing import timed  # noqa: E402  (benchmarks/timing.py)
 
 OUT = Path(__file__).resolve().parent / "results"
 
@@ -70,16 +70,6 @@ def naive_siso(tr, seed=0, maxiter=None):
     return optimize.differential_evolution(obj, list(zip(lo, hi)), seed=seed, popsize=8,
                                            maxiter=maxiter or (40 + 10 * dim), tol=1e-7, init="sobol",
                                            polish=False, updating="deferred")
-
-
-def timed(fn, repeat=1):
-    best = np.inf
-    out = None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
 
 
 def main():

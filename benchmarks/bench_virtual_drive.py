@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from timing import timed  # benchmarks/timing.py
+
 from fdid_fmi.virtual import (MachineConfig, PRESETS, circle, linear_moves, linear_truth,
                               simulate_machine)
 
@@ -40,15 +42,6 @@ def cmd_for(cfg, n, seed=0):
         tr = linear_moves(n_moves=moves, axes=tuple(cfg.axis_names), v=100, acc=2000, jerk=1e5,
                           Ts=cfg.Ts, seed=seed)
     return {a: tr[a][:n] for a in cfg.axis_names}
-
-
-def timed(fn, repeat):
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
 
 
 def main():

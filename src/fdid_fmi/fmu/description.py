@@ -21,6 +21,19 @@ def _fmi_unit(u):
     return FMI_UNITS[u][0] if u in FMI_UNITS else u
 
 
+def _log_categories_and_experiment(Ts):
+    """<LogCategories> (the categories the C plumbing logs to) and <DefaultExperiment>; the same
+    in FMI 2 and FMI 3."""
+    return ["  <LogCategories>",
+            '    <Category name="logStatusWarning" description="warnings and discarded status requests"/>',
+            '    <Category name="logStatusError" description="errors: wrong call order, bad step size, '
+            'unknown value reference, non-finite value (logged unless switched off)"/>',
+            '    <Category name="logStatusFatal" description="fatal errors (out of memory)"/>',
+            '    <Category name="logCalls" description="trace of every FMI call"/>',
+            "  </LogCategories>",
+            f'  <DefaultExperiment startTime="0.0" stepSize="{Ts!r}"/>']
+
+
 def _unit_definitions(layout):
     used = []
     for v in layout.variables:
@@ -83,15 +96,7 @@ def model_description_fmi2(layout, guid, model_identifier, description=None, sou
         L.append("    </SourceFiles>")
     L.append("  </CoSimulation>")
     L += _unit_definitions(layout)
-    L += ["  <LogCategories>",
-          '    <Category name="logStatusWarning" description="warnings and discarded status requests"/>',
-          '    <Category name="logStatusError" description="errors: wrong call order, bad step size, '
-          'unknown value reference, non-finite value (logged unless switched off)"/>',
-          '    <Category name="logStatusFatal" description="fatal errors (out of memory)"/>',
-          '    <Category name="logCalls" description="trace of every FMI call"/>',
-          "  </LogCategories>",
-          f'  <DefaultExperiment startTime="0.0" stepSize="{m.Ts!r}"/>',
-          "  <ModelVariables>"]
+    L += _log_categories_and_experiment(m.Ts) + ["  <ModelVariables>"]
     index = {}
     for k, v in enumerate(layout.variables, start=1):
         index[v.name] = k
@@ -150,14 +155,7 @@ def model_description_fmi3(layout, guid, model_identifier, description=None):
          f'    fixedInternalStepSize="{m.Ts!r}"',
          '    hasEventMode="false"/>']
     L += _unit_definitions(layout)
-    L += ["  <LogCategories>",
-          '    <Category name="logStatusWarning" description="warnings and discarded status requests"/>',
-          '    <Category name="logStatusError" description="errors: wrong call order, bad step size, '
-          'unknown value reference, non-finite value (logged unless switched off)"/>',
-          '    <Category name="logStatusFatal" description="fatal errors (out of memory)"/>',
-          '    <Category name="logCalls" description="trace of every FMI call"/>',
-          "  </LogCategories>",
-          f'  <DefaultExperiment startTime="0.0" stepSize="{m.Ts!r}"/>',
+    L += _log_categories_and_experiment(m.Ts) + [
           "  <ModelVariables>",
           '    <Float64 name="time" valueReference="999999" causality="independent" '
           'variability="continuous" description="simulation time" unit="s"/>']
