@@ -8,7 +8,6 @@ lower the held-out RMS by at least the keep criterion (5 %); on clean data nothi
 import json
 import warnings
 
-import numpy as np
 import pytest
 
 from fdid_fmi.diagnose import diagnose

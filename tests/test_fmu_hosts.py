@@ -1,5 +1,4 @@
 """The FMU outside fmpy: a C host (dlopen), valgrind, the ecos co-simulation engine, wine."""
-import os
 import shutil
 import subprocess
 from pathlib import Path

@@ -22,7 +22,6 @@ from scipy import optimize
 
 from ..errors import InputError
 from ..signals import butter_filtfilt, derivative
-from . import regressors as rg
 from .lsfit import Fit
 from .pole_search import assemble
 from .structure import InputSpec, OutputSpec, Structure

@@ -43,7 +43,7 @@ nearest pole (64-point FFT), so any analytic G(s) (delays included) is handled e
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 from scipy import linalg, signal
@@ -625,7 +625,7 @@ def linear_truth(cfg: MachineConfig) -> dict:
     cfg.validate()
     plant = build_plant(cfg)
     names = cfg.axis_names
-    na, nz = len(names), plant.nz
+    na = len(names)
     Ts = cfg.Ts
     Acl, B0, B1, B2 = _continuous_closed_loop(cfg, plant)
     n = Acl.shape[0]
