@@ -11,7 +11,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 HOST_C = ROOT / "tests" / "c_host" / "host.c"
-INCLUDE = ROOT / "fmu_templates" / "include"
+INCLUDE = ROOT / "src" / "fdid_fmi" / "fmu_templates" / "include"
 
 
 def build_host(out_dir, cc="gcc", exe="host"):

@@ -38,21 +38,8 @@ PLUMBING = {2: "fmi2Functions.c", 3: "fmi3Functions.c"}
 
 
 def templates_dir():
-    """Directory of the C templates (``fmu_templates/`` of the source tree).
-
-    ``FDID_FMU_TEMPLATES`` overrides it (for installs without the source tree).
-    """
-    import os
-    env = os.environ.get("FDID_FMU_TEMPLATES")
-    cands = ([Path(env)] if env else []) + [
-        Path(__file__).resolve().parents[3] / "fmu_templates",
-        Path(__file__).resolve().parents[1] / "templates" / "fmu",
-    ]
-    for c in cands:
-        if (c / "fdid_core.c").is_file():
-            return c
-    raise InputError("the FMU C templates were not found (looked in "
-                     f"{', '.join(str(c) for c in cands)}); set FDID_FMU_TEMPLATES", column="templates")
+    """Directory of the C templates: ``fdid_fmi/fmu_templates/``, installed as package data."""
+    return Path(__file__).resolve().parents[1] / "fmu_templates"
 
 
 def model_identifier_for(path):
