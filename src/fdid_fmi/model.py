@@ -182,6 +182,24 @@ class DriveModel:
         S2 = np.linalg.solve(IA, S)
         return S, S2, self.C @ S + self.D
 
+    def to_control(self):
+        """The linear part as a discrete python-control state space.
+
+        Returns
+        -------
+        control.StateSpace
+            ``A, B, C, D`` with ``dt = Ts`` [s]; inputs and outputs named like the model's ports
+            (commands in mm, friction/feature inputs dimensionless, outputs in their units).
+            The friction nonlinearity is not included: it closes a loop around this system
+            (see :mod:`fdid_fmi.simulate`). Frequency responses, poles and zeros of the linear
+            part come from here (``control.frequency_response``, ``.poles()``, ``.zeros()``).
+        """
+        import control
+        return control.ss(self.A, self.B, self.C, self.D, self.Ts,
+                          inputs=[p.name for p in self.inputs],
+                          outputs=[p.name for p in self.outputs],
+                          states=[f"xi{k}" for k in range(self.n_states)])
+
     # --------------------------------------------------------------- JSON
     def to_dict(self):
         return {
