@@ -13,7 +13,7 @@ import sys
 from ..errors import FdidError
 
 # command modules, in the order their commands are listed in --help
-MODULES = ("identify", "simulate", "export", "validate", "diagnose", "demo")
+MODULES = ("identify", "simulate", "export", "validate", "diagnose", "plan", "align", "fleet", "demo")
 
 
 def build_parser():
