@@ -24,6 +24,8 @@ Models are saved as versioned JSON (:meth:`DriveModel.save` / :func:`load_model`
 from __future__ import annotations
 
 import json
+import re
+import unicodedata
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -36,6 +38,18 @@ FORMAT_VERSION = 1
 INPUT_KINDS = ("command", "external", "friction", "feature")
 OUTPUT_KINDS = ("position", "error", "velocity", "tool_position", "acceleration", "other")
 FEATURE_FUNCTIONS = ("sat", "abs_sat", "stribeck", "sin_position", "cos_position")
+
+
+def delayed_input(kind, params):
+    """True for an input from outside the drive: a command, a measured external input, or a
+    feature computed from the command. A sampled drive answers such an input one controller
+    cycle later at the earliest (DESIGN.md, causality), so the physical outputs have no direct
+    feed-through from it. Friction and velocity/position features are functions of the model's
+    own state and act in the same sample."""
+    if kind in ("command", "external"):
+        return True
+    return (kind == "feature" and params.get("function") in ("sin_position", "cos_position")
+            and params.get("source", "command") == "command")
 
 
 @dataclass
@@ -130,6 +144,7 @@ class DriveModel:
 
     def validate(self):
         """Check shapes, kinds and per-axis completeness; raise InputError if inconsistent."""
+        check_ports_and_names(self)
         n, m, p = self.A.shape[0], self.B.shape[1], self.C.shape[0]
         if self.A.shape != (n, n):
             raise InputError(f"A must be square, got {self.A.shape}", column="A")
@@ -163,6 +178,7 @@ class DriveModel:
         rho = max(abs(np.linalg.eigvals(self.A))) if n else 0.0
         if rho >= 1.0:
             raise InputError(f"the model is not stable (spectral radius of A = {rho:.6f})", column="A")
+        check_simulation_numbers(self)
 
     # ------------------------------------------------ steady-state helpers
     def steady_state_maps(self):
@@ -234,7 +250,7 @@ class DriveModel:
                        provenance=d.get("provenance", {}))
         except InputError as exc:
             raise InputError(str(exc), source=source) from None
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, OverflowError, AttributeError, KeyError, IndexError) as exc:
             raise InputError(f"is not a valid model: {exc}", source=source) from None
 
     # -------------------------------------------------------- combination
@@ -313,6 +329,8 @@ def load_model(path):
         d = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InputError(f"is not a JSON model file ({exc})", source=str(path)) from None
+    except RecursionError:
+        raise InputError("is not a model file (JSON nested too deeply)", source=str(path)) from None
     if not isinstance(d, dict):
         raise InputError("is not a model file (expected a JSON object)", source=str(path))
     if d.get("kind") == "quasi_static":
@@ -354,3 +372,147 @@ def jsonable(obj):
         x = float(obj)
         return x if np.isfinite(x) else None
     return obj
+
+
+# ------------------------------------------------------------------ checks of untrusted models
+# Model files are exchanged between companies: names reach generated C and modelDescription.xml,
+# numbers reach the simulator and the FMU. Both are checked here, when a model is built or loaded.
+NAME_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+MAX_NAME = 128          # characters of a port or axis name
+MAX_TEXT = 1000         # characters of a unit, description or method
+MAX_STATES = 400        # model order
+MAX_PORTS = 256         # inputs, outputs
+TS_RANGE = (1e-6, 10.0)  # s
+MAX_ABS = 1e150         # largest magnitude of a model number (products stay finite)
+
+
+def check_name(name, what, source=None):
+    """Raise InputError unless ``name`` is a C/FMI identifier ``[A-Za-z_][A-Za-z0-9_]*`` of at
+    most MAX_NAME characters. ``what`` says what it names (``"axis"``, ``"input name"``)."""
+    if not isinstance(name, str):
+        raise InputError(f"{what} must be a string, got {type(name).__name__} {_short(name)}",
+                         source=source, column=what)
+    if not name:
+        raise InputError(f"{what} is empty", source=source, column=what)
+    if len(name) > MAX_NAME or not NAME_RE.fullmatch(name):
+        raise InputError(f"{what} {_short(name)} is not a name: expected letters, digits and '_' "
+                         f"(not starting with a digit), at most {MAX_NAME} characters",
+                         source=source, column=what)
+    return name
+
+
+def check_text(text, what, column=None, source=None, max_len=MAX_TEXT):
+    """Raise InputError unless ``text`` is printable UTF-8 (no control characters, no lone
+    surrogates, no line breaks) of at most ``max_len`` characters."""
+    if not isinstance(text, str):
+        raise InputError(f"{what} must be a string, got {type(text).__name__} {_short(text)}",
+                         source=source, column=column)
+    if len(text) > max_len:
+        raise InputError(f"{what} is longer than {max_len} characters", source=source, column=column)
+    for k, ch in enumerate(text):
+        o = ord(ch)
+        if (unicodedata.category(ch) in ("Cc", "Cs", "Zl", "Zp") or 0xFDD0 <= o <= 0xFDEF
+                or (o & 0xFFFE) == 0xFFFE):
+            raise InputError(f"{what} has the non-printable character U+{o:04X} at position {k + 1}; "
+                             f"expected printable text", source=source, column=column)
+    return text
+
+
+def _short(x, n=40):
+    r = repr(x)
+    return r if len(r) <= n else r[:n - 3] + "..."
+
+
+def check_ports_and_names(model):
+    """Types and names of the ports, axes and method of ``model`` (first step of validate).
+
+    Port and axis names must be identifiers (:func:`check_name`), units, descriptions and
+    the method printable text (:func:`check_text`), ``params`` a dict, and the model no
+    larger than MAX_STATES states / MAX_PORTS inputs and outputs.
+    """
+    check_text(model.method, "method", column="method", max_len=200)
+    if model.A.shape[0] > MAX_STATES:
+        raise InputError(f"the model has {model.A.shape[0]} states; at most {MAX_STATES} are supported",
+                         column="A")
+    for ports, what in ((model.inputs, "input"), (model.outputs, "output")):
+        if len(ports) > MAX_PORTS:
+            raise InputError(f"the model has {len(ports)} {what}s; at most {MAX_PORTS} are supported",
+                             column=f"{what}s")
+        seen = set()
+        for k, prt in enumerate(ports):
+            check_name(prt.name, f"{what} {k + 1} name")
+            if prt.name in seen:
+                raise InputError(f"two {what}s are named '{prt.name}'; names must be unique",
+                                 column=prt.name)
+            seen.add(prt.name)
+            if not isinstance(prt.kind, str):
+                raise InputError(f"kind must be a string, got {_short(prt.kind)}", column=prt.name)
+            if prt.axis is not None:
+                check_name(prt.axis, f"axis of {what} '{prt.name}'")
+            check_text(prt.unit, "unit", column=prt.name, max_len=64)
+            check_text(prt.description, "description", column=prt.name)
+            if not isinstance(prt.params, dict):
+                raise InputError(f"params must be a JSON object, got {_short(prt.params)}",
+                                 column=prt.name)
+            for key, val in prt.params.items():
+                if isinstance(val, str):
+                    check_text(val, f"parameter '{key}'", column=prt.name, max_len=200)
+
+
+def _positive(prt, key, unit):
+    v = prt.params.get(key)
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise InputError(f"parameter {key} must be a number > 0 [{unit}], got {_short(v)}",
+                         column=f"{prt.name}.{key}")
+    v = float(v)
+    if not (np.isfinite(v) and 0.0 < v <= MAX_ABS):
+        raise InputError(f"parameter {key} must be a finite number > 0 [{unit}], got {v!r}",
+                         column=f"{prt.name}.{key}")
+    return v
+
+
+def check_simulation_numbers(model):
+    """Every number a simulation uses is finite and in range (last step of validate).
+
+    Ts in TS_RANGE; friction ``v_tilde`` > 0 and ``level`` finite >= 0; feature parameters
+    (``v_tilde`` for sat/abs_sat/stribeck, ``v_s`` for stribeck, ``period_mm`` for sin/cos,
+    ``source`` command/position); matrix entries and the steady-state maps finite and at
+    most MAX_ABS in magnitude. Raises InputError naming the parameter.
+    """
+    lo, hi = TS_RANGE
+    if not lo <= model.Ts <= hi:
+        raise InputError(f"sample time {model.Ts!r} s is outside the supported range {lo:g} .. {hi:g} s",
+                         column="Ts")
+    for arr, nm in ((model.A, "A"), (model.B, "B"), (model.C, "C"), (model.D, "D")):
+        if arr.size and np.max(np.abs(arr)) > MAX_ABS:
+            raise InputError(f"has an entry of magnitude {float(np.max(np.abs(arr))):.3g} "
+                             f"(at most {MAX_ABS:g})", column=nm)
+    for prt in model.inputs:
+        if prt.kind == "friction":
+            _positive(prt, "v_tilde", "mm/s")
+            lev = prt.params.get("level", 1.0)
+            if isinstance(lev, bool) or not isinstance(lev, (int, float, np.integer, np.floating)) \
+                    or not (np.isfinite(float(lev)) and 0.0 <= float(lev) <= MAX_ABS):
+                raise InputError(f"friction level must be a finite number >= 0, got {_short(lev)}",
+                                 column=f"{prt.name}.level")
+        elif prt.kind == "feature":
+            fn = prt.params.get("function")
+            if fn in ("sat", "abs_sat", "stribeck"):
+                _positive(prt, "v_tilde", "mm/s")
+            if fn == "stribeck":
+                _positive(prt, "v_s", "mm/s")
+            if fn in ("sin_position", "cos_position"):
+                _positive(prt, "period_mm", "mm")
+                if prt.params.get("source", "command") not in ("command", "position"):
+                    raise InputError("feature source must be 'command' or 'position', got "
+                                     f"{_short(prt.params.get('source'))}", column=f"{prt.name}.source")
+            if prt.axis is None:
+                raise InputError("a feature input needs an axis", column=prt.name)
+    if model.A.shape[0]:
+        with np.errstate(all="ignore"):
+            maps = model.steady_state_maps()
+        for arr, nm in zip(maps, ("S", "S2", "G1")):
+            if not np.isfinite(arr).all() or (arr.size and np.max(np.abs(arr)) > MAX_ABS):
+                raise InputError(f"the steady-state map {nm} of the model is not finite (A has an "
+                                 f"eigenvalue too close to 1)", column="A")
+
