@@ -229,8 +229,9 @@ class DriveModel:
         }
 
     def save(self, path):
-        Path(path).write_text(json.dumps(self.to_dict(), indent=1))
-        return Path(path)
+        """Write the model JSON atomically (complete or not at all; :mod:`fdid_fmi.outputs`)."""
+        from .outputs import atomic_write
+        return atomic_write(path, json.dumps(self.to_dict(), indent=1))
 
     def copy(self):
         return DriveModel.from_dict(json.loads(json.dumps(self.to_dict())))
@@ -306,8 +307,9 @@ class QuasiStaticModel:
                 "provenance": jsonable(self.provenance)}
 
     def save(self, path):
-        Path(path).write_text(json.dumps(self.to_dict(), indent=1))
-        return Path(path)
+        """Write the model JSON atomically (complete or not at all; :mod:`fdid_fmi.outputs`)."""
+        from .outputs import atomic_write
+        return atomic_write(path, json.dumps(self.to_dict(), indent=1))
 
     @classmethod
     def from_dict(cls, d, source="<dict>"):
