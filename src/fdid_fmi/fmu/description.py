@@ -5,14 +5,51 @@ description, causality, variability and (where FMI wants one) initial/start; the
 ModelStructure lists every output with its same-step dependencies on the inputs
 (structural, from the feed-through D and the friction loop) and, for FMI 2.0, every output
 as an InitialUnknown (dependencies left out: they may depend on every input and parameter).
+
+The XML is built with :mod:`xml.etree.ElementTree` (never by pasting strings), so names,
+units and descriptions from a model file are escaped by the library; every attribute value
+is also checked to hold only characters XML 1.0 allows (:func:`xml_text`), and the result is
+parsed back before it is returned. Names themselves are checked by
+:meth:`fdid_fmi.model.DriveModel.validate` (identifiers, printable text).
 """
 from __future__ import annotations
 
 import datetime
-from xml.sax.saxutils import quoteattr
+import xml.etree.ElementTree as ET
 
 from .. import __version__
+from ..errors import InputError
 from .layout import FMI_UNITS
+
+
+def xml_text(value, what="text"):
+    """``str(value)`` when every character is allowed in XML 1.0 (and is not a noncharacter),
+    else InputError naming ``what``."""
+    s = str(value)
+    for k, ch in enumerate(s):
+        o = ord(ch)
+        if not (o in (0x9, 0xA, 0xD) or 0x20 <= o <= 0xD7FF or 0xE000 <= o <= 0xFFFD
+                or 0x10000 <= o <= 0x10FFFF) or 0xFDD0 <= o <= 0xFDEF:
+            raise InputError(f"{what} has the character U+{o:04X} at position {k + 1}, which "
+                             f"modelDescription.xml cannot hold", column=what)
+    return s
+
+
+def _el(parent, tag, attrs=(), what=None):
+    """Sub-element with attributes in the given order (None values left out), each checked."""
+    e = ET.SubElement(parent, tag) if parent is not None else ET.Element(tag)
+    for k, v in (attrs.items() if isinstance(attrs, dict) else attrs):
+        if v is not None:
+            e.set(k, xml_text(v, what or f"{tag}.{k}"))
+    return e
+
+
+def _serialise(root):
+    """Text of the document (UTF-8 declaration, two-space indent), parsed back as a check."""
+    ET.indent(root, space="  ")
+    text = '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+    ET.fromstring(text.encode("utf-8"))   # well-formed, or ParseError (a bug: inputs are checked)
+    return text
 
 
 def _fmi_unit(u):
@@ -21,37 +58,36 @@ def _fmi_unit(u):
     return FMI_UNITS[u][0] if u in FMI_UNITS else u
 
 
-def _log_categories_and_experiment(Ts):
+def _log_categories_and_experiment(root, Ts):
     """<LogCategories> (the categories the C plumbing logs to) and <DefaultExperiment>; the same
     in FMI 2 and FMI 3."""
-    return ["  <LogCategories>",
-            '    <Category name="logStatusWarning" description="warnings and discarded status requests"/>',
-            '    <Category name="logStatusError" description="errors: wrong call order, bad step size, '
-            'unknown value reference, non-finite value (logged unless switched off)"/>',
-            '    <Category name="logStatusFatal" description="fatal errors (out of memory)"/>',
-            '    <Category name="logCalls" description="trace of every FMI call"/>',
-            "  </LogCategories>",
-            f'  <DefaultExperiment startTime="0.0" stepSize="{Ts!r}"/>']
+    cats = _el(root, "LogCategories")
+    for name, desc in (
+            ("logStatusWarning", "warnings and discarded status requests"),
+            ("logStatusError", "errors: wrong call order, bad step size, unknown value reference, "
+                               "non-finite value (logged unless switched off)"),
+            ("logStatusFatal", "fatal errors (out of memory)"),
+            ("logCalls", "trace of every FMI call")):
+        _el(cats, "Category", {"name": name, "description": desc})
+    _el(root, "DefaultExperiment", {"startTime": "0.0", "stepSize": repr(float(Ts))})
 
 
-def _unit_definitions(layout):
+def _unit_definitions(root, layout):
     used = []
     for v in layout.variables:
         if v.unit and v.unit not in used:
             used.append(v.unit)
     if "s" not in used:
         used.append("s")
-    out = ["  <UnitDefinitions>"]
+    defs = _el(root, "UnitDefinitions")
     for u in used:
         name, base, factor = FMI_UNITS.get(u, (u, {}, 1.0))
+        unit = _el(defs, "Unit", {"name": name}, what="unit")
         if base:
-            attrs = "".join(f' {k}="{e}"' for k, e in base.items())
-            fac = f' factor="{factor!r}"' if factor != 1.0 else ""
-            out.append(f"    <Unit name={quoteattr(name)}><BaseUnit{attrs}{fac}/></Unit>")
-        else:
-            out.append(f"    <Unit name={quoteattr(name)}/>")
-    out.append("  </UnitDefinitions>")
-    return out
+            attrs = {k: str(e) for k, e in base.items()}
+            if factor != 1.0:
+                attrs["factor"] = repr(float(factor))
+            _el(unit, "BaseUnit", attrs)
 
 
 def _fmt(x):
@@ -67,120 +103,106 @@ def _header(layout, guid, model_identifier, description):
     return desc, datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
+def _variable_attrs(v):
+    attrs = {"name": v.name, "valueReference": str(v.vr), "description": v.description,
+             "causality": v.causality, "variability": v.variability}
+    if v.initial and v.causality != "input":
+        attrs["initial"] = v.initial
+    return attrs
+
+
 def model_description_fmi2(layout, guid, model_identifier, description=None, source_files=()):
     """Text of an FMI 2.0 Co-Simulation modelDescription.xml."""
     m = layout.model
     desc, stamp = _header(layout, guid, model_identifier, description)
-    L = ['<?xml version="1.0" encoding="UTF-8"?>',
-         '<fmiModelDescription fmiVersion="2.0"',
-         f"  modelName={quoteattr(model_identifier)}",
-         f"  guid={quoteattr(guid)}",
-         f"  description={quoteattr(desc)}",
-         f'  generationTool="fdid-fmi {__version__}"',
-         f'  generationDateAndTime="{stamp}"',
-         '  variableNamingConvention="flat"',
-         '  numberOfEventIndicators="0">',
-         f'  <CoSimulation modelIdentifier={quoteattr(model_identifier)}',
-         '    canHandleVariableCommunicationStepSize="true"',
-         '    canInterpolateInputs="false"',
-         '    maxOutputDerivativeOrder="0"',
-         '    canRunAsynchronuously="false"',
-         '    canBeInstantiatedOnlyOncePerProcess="false"',
-         '    canNotUseMemoryManagementFunctions="false"',
-         '    canGetAndSetFMUstate="true"',
-         '    canSerializeFMUstate="true"',
-         '    providesDirectionalDerivative="false">']
+    root = _el(None, "fmiModelDescription", {
+        "fmiVersion": "2.0", "modelName": model_identifier, "guid": guid, "description": desc,
+        "generationTool": f"fdid-fmi {__version__}", "generationDateAndTime": stamp,
+        "variableNamingConvention": "flat", "numberOfEventIndicators": "0"}, what="description")
+    cs = _el(root, "CoSimulation", {
+        "modelIdentifier": model_identifier, "canHandleVariableCommunicationStepSize": "true",
+        "canInterpolateInputs": "false", "maxOutputDerivativeOrder": "0",
+        "canRunAsynchronuously": "false", "canBeInstantiatedOnlyOncePerProcess": "false",
+        "canNotUseMemoryManagementFunctions": "false", "canGetAndSetFMUstate": "true",
+        "canSerializeFMUstate": "true", "providesDirectionalDerivative": "false"})
     if source_files:
-        L.append("    <SourceFiles>")
-        L += [f"      <File name={quoteattr(f)}/>" for f in source_files]
-        L.append("    </SourceFiles>")
-    L.append("  </CoSimulation>")
-    L += _unit_definitions(layout)
-    L += _log_categories_and_experiment(m.Ts) + ["  <ModelVariables>"]
+        sf = _el(cs, "SourceFiles")
+        for f in source_files:
+            _el(sf, "File", {"name": f})
+    _unit_definitions(root, layout)
+    _log_categories_and_experiment(root, m.Ts)
+    mv = _el(root, "ModelVariables")
     index = {}
     for k, v in enumerate(layout.variables, start=1):
         index[v.name] = k
-        attrs = [f"name={quoteattr(v.name)}", f'valueReference="{v.vr}"',
-                 f"description={quoteattr(v.description)}", f'causality="{v.causality}"',
-                 f'variability="{v.variability}"']
-        if v.initial and v.causality != "input":
-            attrs.append(f'initial="{v.initial}"')
-        tattrs = []
+        mv.append(ET.Comment(f" {k} "))
+        sv = _el(mv, "ScalarVariable", _variable_attrs(v), what=f"variable {v.name!r}")
+        tattrs = {}
         if v.type == "Real" and v.unit:
-            tattrs.append(f"unit={quoteattr(_fmi_unit(v.unit))}")
+            tattrs["unit"] = _fmi_unit(v.unit)
         if v.role == "level":
-            tattrs.append('min="0.0"')
+            tattrs["min"] = "0.0"
         if v.start is not None:
-            tattrs.append(f'start="{_fmt(v.start)}"')
-        L.append(f"    <!-- {k} --><ScalarVariable {' '.join(attrs)}>")
-        L.append(f"      <{v.type}{''.join(' ' + t for t in tattrs)}/>")
-        L.append("    </ScalarVariable>")
-    L.append("  </ModelVariables>")
-    L.append("  <ModelStructure>")
-    L.append("    <Outputs>")
+            tattrs["start"] = _fmt(v.start)
+        _el(sv, v.type, tattrs, what=f"unit of {v.name!r}")
+    ms = _el(root, "ModelStructure")
+    outs = _el(ms, "Outputs")
     for v in layout.outputs:
-        dep = " ".join(str(index[d]) for d in v.depends)
-        kinds = " ".join("dependent" for _ in v.depends)
-        L.append(f'      <Unknown index="{index[v.name]}" dependencies="{dep}" dependenciesKind="{kinds}"/>')
-    L.append("    </Outputs>")
-    L.append("    <InitialUnknowns>")
+        _el(outs, "Unknown", {"index": str(index[v.name]),
+                              "dependencies": " ".join(str(index[d]) for d in v.depends),
+                              "dependenciesKind": " ".join("dependent" for _ in v.depends)})
+    iu = _el(ms, "InitialUnknowns")
     for v in layout.outputs:
-        L.append(f'      <Unknown index="{index[v.name]}"/>')
-    L.append("    </InitialUnknowns>")
-    L.append("  </ModelStructure>")
-    L.append("</fmiModelDescription>")
-    return "\n".join(L) + "\n"
+        _el(iu, "Unknown", {"index": str(index[v.name])})
+    return _serialise(root)
 
 
 def model_description_fmi3(layout, guid, model_identifier, description=None):
     """Text of an FMI 3.0 Co-Simulation modelDescription.xml (Float64 / Boolean variables)."""
     m = layout.model
     desc, stamp = _header(layout, guid, model_identifier, description)
-    L = ['<?xml version="1.0" encoding="UTF-8"?>',
-         '<fmiModelDescription fmiVersion="3.0"',
-         f"  modelName={quoteattr(model_identifier)}",
-         f"  instantiationToken={quoteattr(guid)}",
-         f"  description={quoteattr(desc)}",
-         f'  generationTool="fdid-fmi {__version__}"',
-         f'  generationDateAndTime="{stamp}"',
-         '  variableNamingConvention="flat">',
-         f'  <CoSimulation modelIdentifier={quoteattr(model_identifier)}',
-         '    canHandleVariableCommunicationStepSize="true"',
-         '    canGetAndSetFMUState="true"',
-         '    canSerializeFMUState="true"',
-         '    providesDirectionalDerivatives="false"',
-         '    providesAdjointDerivatives="false"',
-         '    providesIntermediateUpdate="false"',
-         '    canReturnEarlyAfterIntermediateUpdate="false"',
-         f'    fixedInternalStepSize="{m.Ts!r}"',
-         '    hasEventMode="false"/>']
-    L += _unit_definitions(layout)
-    L += _log_categories_and_experiment(m.Ts) + [
-          "  <ModelVariables>",
-          '    <Float64 name="time" valueReference="999999" causality="independent" '
-          'variability="continuous" description="simulation time" unit="s"/>']
+    root = _el(None, "fmiModelDescription", {
+        "fmiVersion": "3.0", "modelName": model_identifier, "instantiationToken": guid,
+        "description": desc, "generationTool": f"fdid-fmi {__version__}",
+        "generationDateAndTime": stamp, "variableNamingConvention": "flat"}, what="description")
+    _el(root, "CoSimulation", {
+        "modelIdentifier": model_identifier, "canHandleVariableCommunicationStepSize": "true",
+        "canGetAndSetFMUState": "true", "canSerializeFMUState": "true",
+        "providesDirectionalDerivatives": "false", "providesAdjointDerivatives": "false",
+        "providesIntermediateUpdate": "false", "canReturnEarlyAfterIntermediateUpdate": "false",
+        "fixedInternalStepSize": repr(float(m.Ts)), "hasEventMode": "false"})
+    _unit_definitions(root, layout)
+    _log_categories_and_experiment(root, m.Ts)
+    mv = _el(root, "ModelVariables")
+    _el(mv, "Float64", {"name": "time", "valueReference": "999999", "causality": "independent",
+                        "variability": "continuous", "description": "simulation time", "unit": "s"})
     for v in layout.variables:
-        tag = "Float64" if v.type == "Real" else "Boolean"
-        attrs = [f"name={quoteattr(v.name)}", f'valueReference="{v.vr}"',
-                 f"description={quoteattr(v.description)}", f'causality="{v.causality}"',
-                 f'variability="{v.variability}"']
-        if v.initial and v.causality != "input":
-            attrs.append(f'initial="{v.initial}"')
+        attrs = _variable_attrs(v)
         if v.type == "Real" and v.unit:
-            attrs.append(f"unit={quoteattr(_fmi_unit(v.unit))}")
+            attrs["unit"] = _fmi_unit(v.unit)
         if v.role == "level":
-            attrs.append('min="0.0"')
+            attrs["min"] = "0.0"
         if v.start is not None:
-            attrs.append(f'start="{_fmt(v.start)}"')
-        L.append(f"    <{tag} {' '.join(attrs)}/>")
-    L.append("  </ModelVariables>")
-    L.append("  <ModelStructure>")
+            attrs["start"] = _fmt(v.start)
+        _el(mv, "Float64" if v.type == "Real" else "Boolean", attrs, what=f"variable {v.name!r}")
+    ms = _el(root, "ModelStructure")
     for v in layout.outputs:
-        deps = " ".join(str(layout.vr(d)) for d in v.depends)
-        kinds = " ".join("dependent" for _ in v.depends)
-        L.append(f'    <Output valueReference="{v.vr}" dependencies="{deps}" dependenciesKind="{kinds}"/>')
+        _el(ms, "Output", {"valueReference": str(v.vr),
+                           "dependencies": " ".join(str(layout.vr(d)) for d in v.depends),
+                           "dependenciesKind": " ".join("dependent" for _ in v.depends)})
     for v in layout.outputs:
-        L.append(f'    <InitialUnknown valueReference="{v.vr}"/>')
-    L.append("  </ModelStructure>")
-    L.append("</fmiModelDescription>")
-    return "\n".join(L) + "\n"
+        _el(ms, "InitialUnknown", {"valueReference": str(v.vr)})
+    return _serialise(root)
+
+
+def build_description_fmi3(model_identifier, sources, uses_libm):
+    """Text of the FMI 3.0 ``sources/buildDescription.xml``."""
+    root = _el(None, "fmiBuildDescription", {"fmiVersion": "3.0"})
+    bc = _el(root, "BuildConfiguration", {"modelIdentifier": model_identifier,
+                                          "description": "C99; link -lm only if listed"})
+    sfs = _el(bc, "SourceFileSet", {"language": "C99"})
+    for s in sources:
+        _el(sfs, "SourceFile", {"name": s})
+    if uses_libm:
+        _el(bc, "Library", {"name": "m"})
+    return _serialise(root)

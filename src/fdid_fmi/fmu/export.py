@@ -23,12 +23,17 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from ..errors import InputError
-from ..model import DriveModel, QuasiStaticModel, load_model
+from ..errors import FdidError, InputError
+from ..model import DriveModel, QuasiStaticModel, check_text, load_model
+from ..outputs import atomic_path, check_output
 from .build import PLATFORMS, compile_binary
 from .codegen import model_data_c, model_data_h
-from .description import model_description_fmi2, model_description_fmi3
+from .description import build_description_fmi3, model_description_fmi2, model_description_fmi3
 from .layout import build_layout, check_exportable
+
+
+class ExportError(FdidError):
+    """The generated FMU failed its own checks (fmpy validation); nothing was written."""
 
 CORE_SOURCES = ("fdid_core.c", "fdid_instance.c")   # written once, compiled into every FMU
 HEADERS = ("fdid_model.h", "fdid_instance.h")
@@ -85,17 +90,20 @@ def export_fmu(model, path, fmi_version=2, platforms=("linux64",), backend="c",
 
     Returns
     -------
-    Path of the written FMU.
+    Path of the written FMU. It is written atomically (complete or not at all) and only after
+    fmpy's validator (``fmpy.validation.validate_fmu``: schema, names, model structure, units)
+    found no problem in it; an existing file at ``path`` is replaced only then.
     """
+    inputs = [model] if isinstance(model, (str, Path)) else []
+    path = check_output(path, inputs=inputs, what="FMU", suffix=".fmu")
     if isinstance(model, (str, Path)):
         model = load_model(model)
     if isinstance(model, QuasiStaticModel):
         check_exportable(model)
     if not isinstance(model, DriveModel):
         raise InputError(f"expected a DriveModel, got {type(model).__name__}", column="model")
-    path = Path(path)
-    if path.suffix.lower() != ".fmu":
-        raise InputError("the output file must end in .fmu", source=str(path))
+    if description is not None:
+        check_text(description, "description", column="description")
     try:
         fmi_version = int(fmi_version)
     except (TypeError, ValueError):
@@ -132,8 +140,8 @@ def export_fmu(model, path, fmi_version=2, platforms=("linux64",), backend="c",
             shutil.copy(tdir / f, src / f)
         for f in FMI_HEADERS[fmi_version]:
             shutil.copy(tdir / "include" / f, src / f)
-        (src / "model_data.h").write_text(model_data_h(layout, guid, ident))
-        (src / "model_data.c").write_text(model_data_c(layout, guid, ident))
+        (src / "model_data.h").write_text(model_data_h(layout, guid, ident), encoding="ascii")
+        (src / "model_data.c").write_text(model_data_c(layout, guid, ident), encoding="ascii")
         for plat in platforms:
             p = PLATFORMS[plat]
             bdir = p.fmi2_dir if fmi_version == 2 else p.fmi3_dir
@@ -143,32 +151,27 @@ def export_fmu(model, path, fmi_version=2, platforms=("linux64",), backend="c",
             xml = model_description_fmi2(layout, guid, ident, description, source_files=sources)
         else:
             xml = model_description_fmi3(layout, guid, ident, description)
-            (src / "buildDescription.xml").write_text(_build_description(ident, sources, layout.uses_libm))
-        (root / "modelDescription.xml").write_text(xml)
+            (src / "buildDescription.xml").write_text(build_description_fmi3(ident, sources, layout.uses_libm),
+                                                      encoding="utf-8")
+        (root / "modelDescription.xml").write_text(xml, encoding="utf-8")
         res = root / "resources"
         res.mkdir()
         model.save(res / "model.json")
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmpzip = path.with_name(path.name + ".part")
-        with zipfile.ZipFile(tmpzip, "w", zipfile.ZIP_DEFLATED) as zf:
-            for f in sorted(root.rglob("*")):
-                if f.is_file():
-                    zf.write(f, f.relative_to(root).as_posix())
-        tmpzip.replace(path)
+        with atomic_path(path) as tmpzip:
+            with zipfile.ZipFile(tmpzip, "w", zipfile.ZIP_DEFLATED) as zf:
+                for f in sorted(root.rglob("*")):
+                    if f.is_file():
+                        zf.write(f, f.relative_to(root).as_posix())
+            check_generated_fmu(tmpzip, path)
     return path
 
 
-def _build_description(ident, sources, uses_libm):
-    """FMI 3.0 sources/buildDescription.xml."""
-    files = "\n".join(f'      <SourceFile name="{s}"/>' for s in sources)
-    libs = '\n      <Library name="m"/>' if uses_libm else ""
-    return (
-        '<?xml version="1.0" encoding="UTF-8"?>\n'
-        '<fmiBuildDescription fmiVersion="3.0">\n'
-        f'  <BuildConfiguration modelIdentifier="{ident}" description="C99; link -lm only if listed">\n'
-        '    <SourceFileSet language="C99">\n'
-        f"{files}\n"
-        "    </SourceFileSet>"
-        f"{libs}\n"
-        "  </BuildConfiguration>\n"
-        "</fmiBuildDescription>\n")
+def check_generated_fmu(fmu_file, target):
+    """Run fmpy's validator on a freshly built FMU; ExportError listing the problems if any.
+
+    ``fmu_file`` is the (temporary) zip, ``target`` the name it is for (messages)."""
+    from fmpy.validation import validate_fmu as fmpy_validate
+    problems = fmpy_validate(str(fmu_file))
+    if problems:
+        raise ExportError(f"{target}: the generated FMU fails fmpy's validation, nothing written: "
+                          + "; ".join(str(p) for p in problems[:5]))

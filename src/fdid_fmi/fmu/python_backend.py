@@ -77,6 +77,7 @@ def export_python_fmu(model, path, model_identifier, description=None):
         out.mkdir()
         built = FmuBuilder.build_FMU(script, dest=out / f"{model_identifier}.fmu",
                                      project_files=[data / "fdid_layout.json"])
-        path.parent.mkdir(parents=True, exist_ok=True)
-        shutil.move(str(built), str(path))
+        from ..outputs import atomic_path
+        with atomic_path(path) as tmpfmu:
+            shutil.copyfile(str(built), str(tmpfmu))
     return path
