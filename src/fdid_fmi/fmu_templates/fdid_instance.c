@@ -26,6 +26,12 @@ typedef struct {
 /* serialized form: GUID (64 bytes, NUL-padded) then the snapshot bytes */
 #define GUID_BYTES 64
 
+/* at most this many internal steps in one doStep (a larger communication step is refused
+ * with a logged message instead of running for minutes) */
+#define FDID_MAX_STEPS_PER_DOSTEP 10000000LL
+/* largest step count a state may carry: steps * Ts stays exact in a double */
+#define FDID_MAX_TOTAL_STEPS 9007199254740992LL
+
 /* ------------------------------------------------------------------ logging */
 void fdid_log(const FdidInstance *I, int status, int cat, const char *fmt, ...) {
     char buf[1024];
@@ -263,6 +269,38 @@ static int snapshot_valid(const FdidInstance *I, const Snapshot *s) {
            (s->mode & FDID_ANY_STATE);
 }
 
+static int is_flag(int x) { return x == 0 || x == 1; }
+
+/* field-by-field check of a snapshot's content (a deserialized state comes from outside):
+ * NULL when it is a state this FMU can be in, else what is wrong */
+static const char *snapshot_content_error(const Snapshot *s) {
+    static const int modes[] = {FDID_ST_INSTANTIATED, FDID_ST_INIT, FDID_ST_STEP, FDID_ST_TERMINATED,
+                                FDID_ST_ERROR};
+    const double *buf = (const double *)((const char *)s + sizeof(Snapshot));
+    FdidState view;
+    size_t i;
+    int k, mode_ok = 0, a;
+    for (k = 0; k < (int)(sizeof modes / sizeof modes[0]); k++)
+        if (s->mode == modes[k]) mode_ok = 1;
+    if (!mode_ok) return "the instance state word is not one state of the FMI state machine";
+    if (!fdid_is_finite(s->start_time)) return "the start time is not finite";
+    if (s->flags.steps < 0 || s->flags.steps > FDID_MAX_TOTAL_STEPS) return "the step counter is out of range";
+    if (!fdid_is_finite(s->start_time + (double)s->flags.steps * fdid_model.Ts))
+        return "the FMU time is not finite";
+    if (!is_flag(s->flags.init_dirty) || !is_flag(s->flags.out_dirty) || !is_flag(s->flags.started))
+        return "a flag is neither 0 nor 1";
+    for (i = 0; i < s->nbuf; i++)
+        if (!fdid_is_finite(buf[i])) return "a state variable is NaN or infinite";
+    /* the views only read here */
+    fdid_state_bind(&view, &fdid_model, (double *)buf);
+    for (a = 0; a < fdid_model.n_axes; a++) {
+        if (view.level[a] < 0.0) return "a friction level is negative";
+        if (!(view.vtilde[a] > 0.0)) return "a friction transition velocity is not positive";
+        if (view.on[a] != 0.0 && view.on[a] != 1.0) return "a friction switch is neither 0 nor 1";
+    }
+    return NULL;
+}
+
 int fdid_get_state(FdidInstance *I, const char *fn, void **state) {
     Snapshot *s;
     if (!state) return fdid_fail(I, "%s: NULL argument", fn);
@@ -284,7 +322,9 @@ int fdid_get_state(FdidInstance *I, const char *fn, void **state) {
 
 int fdid_set_state(FdidInstance *I, const char *fn, const void *state) {
     const Snapshot *s = (const Snapshot *)state;
+    const char *why;
     if (!snapshot_valid(I, s)) return fdid_fail(I, "%s: not a state of this FMU", fn);
+    if ((why = snapshot_content_error(s)) != NULL) return fdid_fail(I, "%s: corrupt state: %s", fn, why);
     I->mode = s->mode;
     I->start_time = s->start_time;
     I->s.f = s->flags;
@@ -337,10 +377,23 @@ int fdid_deserialize(FdidInstance *I, const char *fn, const void *bytes, size_t 
         s = (Snapshot *)fdid_alloc(I, 1, snapshot_bytes());
         if (!s) return fdid_fail(I, "%s: out of memory", fn);
     }
-    memcpy(s, in + GUID_BYTES, snapshot_bytes());
-    if (!snapshot_valid(I, s)) {
-        if (!*state) fdid_free(I, s);
-        return fdid_fail(I, "%s: corrupt state", fn);
+    {
+        /* checked in a scratch copy first: a refused state leaves *state as it was */
+        Snapshot *chk = (Snapshot *)fdid_alloc(I, 1, snapshot_bytes());
+        const char *why;
+        if (!chk) {
+            if (!*state) fdid_free(I, s);
+            return fdid_fail(I, "%s: out of memory", fn);
+        }
+        memcpy(chk, in + GUID_BYTES, snapshot_bytes());
+        why = snapshot_valid(I, chk) ? snapshot_content_error(chk) : "not a state of this FMU";
+        if (why) {
+            fdid_free(I, chk);
+            if (!*state) fdid_free(I, s);
+            return fdid_fail(I, "%s: corrupt state: %s", fn, why);
+        }
+        memcpy(s, chk, snapshot_bytes());
+        fdid_free(I, chk);
     }
     *state = s;
     return FDID_OK;
@@ -356,6 +409,12 @@ int fdid_do_step(FdidInstance *I, const char *fn, double t_comm, double h) {
     q = h / Ts;
     if (q > 1e15) return fdid_fail(I, "%s: communication step size %g s is too large", fn, h);
     nsteps = (long long)(q + 0.5);
+    if (nsteps > FDID_MAX_STEPS_PER_DOSTEP)
+        return fdid_fail(I, "%s: communication step size %g s would take %.0f internal steps of Ts = %g s; "
+                            "at most %.0f are allowed in one doStep (use smaller communication steps)",
+                         fn, h, (double)nsteps, Ts, (double)FDID_MAX_STEPS_PER_DOSTEP);
+    if (I->s.f.steps > FDID_MAX_TOTAL_STEPS - nsteps)
+        return fdid_fail(I, "%s: the FMU time would pass the largest supported step count", fn);
     if (nsteps < 1 || (h - (double)nsteps * Ts > 1e-9 * h) || ((double)nsteps * Ts - h > 1e-9 * h))
         return fdid_fail(I, "%s: communication step size %.17g s is not an integer multiple of the "
                             "model sample time Ts = %.17g s (relative tolerance 1e-9)", fn, h, Ts);
