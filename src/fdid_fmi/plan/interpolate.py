@@ -1,0 +1,353 @@
+"""Interpolate a part program into commanded positions at Ts, as a CNC's interpolator does.
+
+Imitated behaviour: **exact stop at every block end, no corner blending** - what a CNC does in
+exact-stop mode (ISO ``G61`` / ``G09`` on every block, Heidenhain's M197-free default with
+zero tolerance): the path velocity comes to rest at the end of each block, so the commanded
+path *is* the programmed geometry (lines, arcs, helices) and corners are sharp. The in-position
+wait of a real exact stop is not imitated: the next block starts at the next sample, and the
+axes' lag carries into it (that is what the twin then predicts at the corner). ``G64`` blending
+is not imitated.
+
+Within a block the path parameter s(t) (arc length, mm) follows the time-optimal rest-to-rest
+7-segment jerk-limited S-curve of :func:`fdid_fmi.virtual.trajectories.scurve`, with
+
+* path feed  <= the programmed feed F (G93: the block length over its programmed time; G0: no
+  feed limit), and <= v_max,i / max|u_i| for every axis i (u: unit tangent);
+* path acceleration and jerk <= a_max,i / max|u_i|, j_max,i / max|u_i| for every axis;
+* on arcs, the per-axis velocity, acceleration and jerk *including the centripetal terms* are
+  measured on a 4x finer grid and the whole block profile is time-scaled uniformly
+  (v ~ lam, a ~ lam^2, j ~ lam^3, the same profile shape) until every axis is within its limits
+  (as :func:`fdid_fmi.virtual.trajectories.follow_curve` does);
+* each block's duration is rounded up to a whole number of samples (another uniform time
+  scaling, <= 1), so block ends fall on samples and the end point is commanded exactly.
+
+Hence every commanded sample lies on the programmed path (to rounding), and the finite
+differences of the samples respect |v| <= v_max, |a| <= a_max, |j| <= j_max per axis.
+A user who has the controller's own interpolated setpoints (a trace) passes them instead
+(:func:`commands_from_trace`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..virtual.trajectories import scurve
+
+AXES = ("x", "y", "z")
+
+
+@dataclass
+class AxisLimits:
+    """Kinematic limits of one axis.
+
+    Attributes
+    ----------
+    v : float, mm/s      (also the rapid traverse velocity)
+    a : float, mm/s^2
+    j : float, mm/s^3
+    """
+
+    v: float
+    a: float
+    j: float
+
+    def __post_init__(self):
+        for name in ("v", "a", "j"):
+            val = getattr(self, name)
+            try:
+                ok = math.isfinite(float(val)) and float(val) > 0
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise InputError(f"axis limit {name} must be a positive number, got {val!r}",
+                                 column=f"limit {name}")
+            setattr(self, name, float(val))
+
+
+@dataclass
+class Interpolation:
+    """Commanded positions of a program.
+
+    Attributes
+    ----------
+    t : ndarray (N,), s
+    positions : dict axis -> ndarray (N,), mm (x, y, z)
+    Ts : float, s
+    block_of_sample : ndarray (N,) int   index of the block each sample belongs to (-1: before
+        the first block; the settling time after the last block counts to the last block)
+    spans : list of (k0, k1)   block b moves from sample k0 to sample k1 (its end point)
+    path_s : ndarray (N,), mm    programmed path length travelled at each sample
+    cycle_time : float, s     time from the first block's start to the last block's end
+    info : dict               limits, per-block feed used, corner rule
+    """
+
+    t: np.ndarray
+    positions: dict
+    Ts: float
+    block_of_sample: np.ndarray
+    spans: list
+    path_s: np.ndarray
+    cycle_time: float
+    info: dict = field(default_factory=dict)
+
+    @property
+    def n(self):
+        return self.t.size
+
+
+def parse_limits(text, default=None):
+    """Limits from ``v,a,j`` or ``x=v,a,j;y=...`` text (mm/s, mm/s^2, mm/s^3)."""
+    out = dict(default or {})
+    parts = [p for p in str(text).replace(";", " ").split() if p]
+    for part in parts:
+        if "=" in part:
+            ax, vals = part.split("=", 1)
+            axes = [ax.strip().lower()]
+        else:
+            axes, vals = list(AXES), part
+        try:
+            v, a, j = (float(x) for x in vals.split(","))
+        except ValueError:
+            raise InputError(f"'{part}' is not v,a,j (mm/s, mm/s^2, mm/s^3) or AXIS=v,a,j",
+                             column="--limits") from None
+        for ax in axes:
+            if ax not in AXES:
+                raise InputError(f"unknown axis '{ax}' (x, y, z)", column="--limits")
+            out[ax] = AxisLimits(v, a, j)
+    return out
+
+
+def limits_from_trace(trace, axes=None, cutoff_hz=None):
+    """Estimate each axis's v/a/j limits from a recorded trace of the same machine.
+
+    The largest |velocity|, |acceleration| and |jerk| of the commanded position (derivatives
+    through the zero-phase Butterworth of :func:`fdid_fmi.signals.filtered_derivatives`, cutoff
+    min(50 Hz, 0.1/Ts)). The record shows what the interpolator used, so these are lower
+    bounds of the machine's true limits (the jerk in particular is smoothed by the filter).
+    """
+    from ..signals import filtered_derivatives
+    from ..identify.quasi_static import default_cutoff
+    axes = axes or [a for a in trace.axes if trace.has(a, "cmd")]
+    cutoff_hz = cutoff_hz or default_cutoff(trace.Ts)
+    out = {}
+    for ax in axes:
+        v, a, j = filtered_derivatives(trace.cmd(ax), trace.Ts, cutoff_hz, 2, 3)
+        vals = [float(np.max(np.abs(d))) for d in (v, a, j)]
+        if min(vals) <= 0:
+            raise InputError(f"axis '{ax}' does not move: no limits can be estimated", source=trace.source,
+                             column=f"{ax}.cmd")
+        out[ax] = AxisLimits(*vals)
+    return out
+
+
+def _tangent_peaks(block, n=513):
+    """max |u_i| of the unit tangent over the block, per axis."""
+    L = block.length
+    if L == 0:
+        return np.zeros(3)
+    if block.kind != "arc":
+        return np.abs(block.end - block.start) / L
+    p = block.point(np.linspace(0.0, L, n))
+    d = np.diff(p, axis=0)
+    d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
+    return np.max(np.abs(d), axis=0)
+
+
+def _axis_peaks(p, dt):
+    d1 = np.diff(p, axis=0) / dt
+    d2 = np.diff(d1, axis=0) / dt
+    d3 = np.diff(d2, axis=0) / dt
+    z = np.zeros(3)
+    return (np.max(np.abs(d1), axis=0) if len(d1) else z, np.max(np.abs(d2), axis=0) if len(d2) else z,
+            np.max(np.abs(d3), axis=0) if len(d3) else z)
+
+
+def block_profile(block, limits, Ts, override=1.0):
+    """The S-curve of one block and its duration rounded to whole samples.
+
+    Parameters
+    ----------
+    block : Block
+    limits : dict axis -> AxisLimits (every axis the block moves)
+    Ts : float, s
+    override : float, feed override (1 = programmed feed)
+
+    Returns
+    -------
+    (prof, n_samples, c) : the SCurve, the number of sample steps the block takes and the time
+    compression c <= 1 (the profile is evaluated at tau * c).
+    """
+    L = block.length
+    if block.kind == "dwell":
+        return None, int(math.ceil(block.block_time / Ts - 1e-9)), 1.0
+    if L == 0:
+        return None, 0, 1.0
+    u = _tangent_peaks(block)
+    v = block.feed * override
+    a = j = math.inf
+    for i, ax in enumerate(AXES):
+        if u[i] > 1e-12:
+            lim = limits.get(ax)
+            if lim is None:
+                raise InputError(f"line {block.line} moves axis {ax.upper()} but no limits are given "
+                                 f"for it (--limits {ax}=v,a,j)", column="--limits")
+            v = min(v, lim.v / u[i])
+            a = min(a, lim.a / u[i])
+            j = min(j, lim.j / u[i])
+    prof = scurve(L, v, a, j)
+    if block.kind == "arc":
+        # centripetal terms: measure the axis peaks on a fine grid, scale time uniformly
+        dt = Ts / 4
+        tau = np.arange(0.0, prof.duration + dt, dt)
+        p = block.point(prof.evaluate(tau)[0])
+        vp, ap, jp = _axis_peaks(p, dt)
+        lam = 1.0
+        for i, ax in enumerate(AXES):
+            lim = limits.get(ax)
+            if lim is None:
+                continue
+            if vp[i] > 0:
+                lam = min(lam, lim.v / vp[i])
+            if ap[i] > 0:
+                lam = min(lam, math.sqrt(lim.a / ap[i]))
+            if jp[i] > 0:
+                lam = min(lam, (lim.j / jp[i]) ** (1 / 3))
+        if lam < 1.0:
+            lam *= 0.995
+            prof = scurve(L, lam * v, lam ** 2 * a, lam ** 3 * j)
+    n = max(1, int(math.ceil(prof.duration / Ts - 1e-9)))
+    c = prof.duration / (n * Ts)
+    return prof, n, c
+
+
+def interpolate(program, limits, Ts, overrides=None, lead_in=0.05, settle=0.5, progress=False):
+    """Commanded positions of a program at Ts (see module docstring).
+
+    Parameters
+    ----------
+    program : Program
+    limits : dict axis -> AxisLimits
+    Ts : float, s (the model's sample time)
+    overrides : dict block index -> feed override factor (0 < f <= any), optional
+    lead_in : float, s   rest at the start position before the first block
+    settle : float, s    rest after the last block (the drive settles; errors there count
+        to the last block)
+
+    Returns
+    -------
+    Interpolation
+    """
+    if not (Ts > 0 and math.isfinite(Ts)):
+        raise InputError(f"Ts must be > 0 s, got {Ts!r}", column="Ts")
+    if not program.blocks:
+        raise InputError("the program has no motion block", source=program.source)
+    overrides = overrides or {}
+    n0 = int(round(lead_in / Ts))
+    pieces, spans, feeds = [], [], []
+    k = n0
+    pos = np.asarray(program.blocks[0].start, float)
+    it = program.blocks
+    if progress:
+        from tqdm import tqdm
+        it = tqdm(it, desc="interpolating", unit="block", leave=False)
+    for b in it:
+        f = float(overrides.get(b.index, 1.0))
+        if not f > 0:
+            raise InputError(f"feed override of line {b.line} must be > 0, got {f!r}", column="override")
+        prof, n, c = block_profile(b, limits, Ts, f)
+        if prof is None:
+            pieces.append(np.repeat(b.end[None, :], n, axis=0))
+            spans.append((k, k + n))
+            feeds.append(0.0)
+        else:
+            tau = np.arange(1, n + 1) * Ts * c
+            s = prof.evaluate(tau)[0]
+            s[-1] = b.length
+            pieces.append(b.point(s))
+            spans.append((k, k + n))
+            feeds.append(prof.v_peak * c)
+        k += n
+        pos = b.end
+    n_settle = int(round(settle / Ts))
+    P = np.vstack([np.repeat(program.blocks[0].start[None, :], n0 + 1, axis=0)] + pieces
+                  + [np.repeat(pos[None, :], n_settle, axis=0)])
+    N = P.shape[0]
+    owner = np.full(N, -1, int)
+    path_s = np.zeros(N)
+    s0 = 0.0
+    for b, (k0, k1) in zip(program.blocks, spans):
+        owner[k0 + 1:k1 + 1] = b.index
+        if k1 > k0 and b.kind != "dwell" and b.length > 0:
+            seg = np.linalg.norm(np.diff(P[k0:k1 + 1], axis=0), axis=1)
+            # the programmed length, distributed like the samples (chords sum to ~length)
+            cs = np.cumsum(seg)
+            path_s[k0 + 1:k1 + 1] = s0 + b.length * cs / cs[-1] if cs[-1] > 0 else s0
+            s0 += b.length
+        else:
+            path_s[k0 + 1:k1 + 1] = s0
+    last = program.blocks[-1].index
+    owner[spans[-1][1] + 1:] = last
+    path_s[spans[-1][1] + 1:] = s0
+    t = np.arange(N) * Ts
+    return Interpolation(t=t, positions={a: P[:, i].copy() for i, a in enumerate(AXES)}, Ts=Ts,
+                         block_of_sample=owner, spans=spans, path_s=path_s,
+                         cycle_time=(spans[-1][1] - spans[0][0]) * Ts,
+                         info={"corner_rule": "exact stop at every block end, no blending",
+                               "limits": {a: vars(l) for a, l in limits.items()},
+                               "feed_used_mm_s": feeds, "lead_in_s": n0 * Ts,
+                               "settle_s": n_settle * Ts})
+
+
+def commands_from_trace(program, trace, axes):
+    """Use a controller's own interpolated setpoints (the ``cmd`` channels of a trace) instead
+    of :func:`interpolate`; samples are attributed to blocks by the nearest point of the
+    programmed path (monotone along the program).
+
+    Returns
+    -------
+    Interpolation (cycle_time: from the first to the last moving sample)
+    """
+    Ts = trace.Ts
+    P = np.zeros((trace.n, 3))
+    for i, a in enumerate(AXES):
+        if a in axes:
+            if not trace.has(a, "cmd"):
+                raise InputError(f"the trace has no commanded position of axis '{a}'", source=trace.source)
+            P[:, i] = trace.cmd(a)
+    # dense programmed path, each vertex tagged with its block and path length
+    verts, tags, sv = [], [], []
+    s0 = 0.0
+    for b in program.blocks:
+        if b.kind == "dwell" or b.length == 0:
+            continue
+        m = max(2, int(math.ceil(b.length / 0.05)) + 1)
+        s = np.linspace(0.0, b.length, m)
+        verts.append(b.point(s))
+        tags.append(np.full(m, b.index))
+        sv.append(s0 + s)
+        s0 += b.length
+    V, T, S = np.vstack(verts), np.concatenate(tags), np.concatenate(sv)
+    dims = [i for i, a in enumerate(AXES) if a in axes]
+    owner = np.empty(trace.n, int)
+    path_s = np.empty(trace.n)
+    j = 0
+    win = 4000
+    for k in range(trace.n):
+        hi = min(len(V), j + win)
+        d = np.sum((V[j:hi][:, dims] - P[k, dims]) ** 2, axis=1)
+        jj = j + int(np.argmin(d))
+        j = jj
+        owner[k], path_s[k] = T[jj], S[jj]
+    moving = np.flatnonzero(np.any(np.abs(np.diff(P, axis=0)) > 0, axis=1))
+    cyc = (moving[-1] - moving[0] + 1) * Ts if moving.size else 0.0
+    spans = []
+    for b in program.blocks:
+        ks = np.flatnonzero(owner == b.index)
+        spans.append((int(ks[0]) - 1, int(ks[-1])) if ks.size else (0, 0))
+    return Interpolation(t=trace.t - trace.t[0], positions={a: P[:, i].copy() for i, a in enumerate(AXES)},
+                         Ts=Ts, block_of_sample=owner, spans=spans, path_s=path_s, cycle_time=cyc,
+                         info={"corner_rule": "the controller's own setpoints (trace)",
+                               "source": trace.source})

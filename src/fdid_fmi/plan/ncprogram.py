@@ -1,0 +1,501 @@
+"""Read an ISO 6983 / RS-274 part program into motion blocks.
+
+Why a small tokenizer and no PyPI parser: the G-code parsers on PyPI either are 3D-printer
+dialects that drop what they do not understand without a word and lose the line numbers
+(``gcodeparser``: one regex over the whole file, no modal motion, no parenthesis comments),
+are unmaintained since 2017 (``pygcode`` 0.2.1), or interpret the Siemens dialect into a
+Polars table with a Rust extension (``nc-gcode-interpreter``: no ``R`` arcs, no G20, errors
+not tied to our lines). RS-274 words are regular (a letter and a number, comments in
+parentheses or after ``;``), so a tokenizer of ~40 lines that knows every line number and
+refuses what it does not know is the safer tool here.
+
+What is read
+------------
+* motion: ``G0`` (rapid, straight line at the axes' rapid limits), ``G1``, ``G2``/``G3``
+  (clockwise / counter-clockwise arcs, seen from the positive axis normal to the plane) with
+  ``I J K`` centre offsets (incremental from the start point; ``G90.1`` makes them absolute) or
+  ``R`` radius (``R > 0``: the arc of at most 180 deg, ``R < 0``: the longer one); an ``I J K``
+  arc whose end equals its start is a full circle; a move along the plane normal during an arc
+  makes a helix; ``G4 P<s>`` dwell (LinuxCNC convention: P in seconds).
+* modal state: ``G17/G18/G19`` (XY / ZX / YZ plane), ``G20/G21`` (inch / mm: coordinates and
+  feeds x 25.4), ``G90/G91`` (absolute / incremental), ``G93`` (inverse time: ``F`` = 1 / block
+  time in minutes, needed on every feed block) and ``G94`` (``F`` in units per minute, modal).
+* ``N`` line numbers, ``O`` program numbers, ``%`` lines, ``( ... )`` and ``;`` comments.
+* passed over and listed (they do not move the axes): ``S M T H D`` words and the G codes
+  ``G40 G49 G54-G59 G61 G64 G80`` (offsets and modes that do not change the programmed path).
+Anything else (another G code, ``A B C U V W`` axes, parameters ``#``, expressions) stops with
+an :class:`~fdid_fmi.errors.InputError` naming the file and line.
+
+Arc checks: an ``I J K`` arc whose end point is not on its circle (|r_end - r_start| larger than
+0.002 mm + 0.1 % of the radius) is refused, as are ``R`` arcs shorter than half the chord, arcs
+with both ``R`` and ``I J K`` and arcs with an offset word outside their plane. When the two
+radii differ within the tolerance the arc's radius changes linearly along it (as LinuxCNC does).
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+INCH = 25.4
+_PLANES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}   # (first, second, normal) axis index
+_PLANE_NAMES = {17: "G17 (XY)", 18: "G18 (ZX)", 19: "G19 (YZ)"}
+_OFFSET_LETTER = {0: "I", 1: "J", 2: "K"}
+_IGNORED_G = {40, 49, 54, 55, 56, 57, 58, 59, 61, 64, 80}
+_IGNORED_LETTERS = set("SMTHD")
+_GROUPS = {0: "motion", 1: "motion", 2: "motion", 3: "motion", 4: "dwell",
+           17: "plane", 18: "plane", 19: "plane", 20: "units", 21: "units",
+           90: "distance", 91: "distance", 93: "feed mode", 94: "feed mode",
+           90.1: "arc distance", 91.1: "arc distance"}
+_WORD = re.compile(r"\s*([A-Za-z])\s*([+-]?(?:\d+\.?\d*|\.\d+))")
+_RADIUS_ABS_TOL = 0.002        # mm
+_RADIUS_REL_TOL = 1e-3
+
+
+@dataclass
+class Block:
+    """One motion (or dwell) block of a program, in mm and s.
+
+    Attributes
+    ----------
+    index : int       0-based position among the program's motion blocks
+    line : int        1-based line of the program file
+    number : int or None   the ``N`` word
+    text : str        the line as written
+    kind : str        ``rapid``, ``line``, ``arc`` or ``dwell``
+    start, end : ndarray (3,), mm   X, Y, Z at the start and end
+    feed : float      programmed path feed, mm/s (``inf`` for rapids, 0 for dwells)
+    inverse_time : bool   G93 block: ``feed`` is the equivalent feed length / time
+    block_time : float    G93 block time, s (``nan`` otherwise); dwell time for ``dwell``
+    units : str       ``mm`` or ``inch`` (the program's units, for writing it back)
+    f_word : float or None   the F word in force, in program units (per min, or 1/min in G93)
+    center : ndarray (3,) or None   arc centre (mm); the normal coordinate is the start's
+    plane : int       17, 18 or 19
+    cw : bool         G2
+    sweep : float     arc angle, rad (> 0)
+    r0, r1 : float    arc radius at the start and end, mm
+    """
+
+    index: int
+    line: int
+    number: int | None
+    text: str
+    kind: str
+    start: np.ndarray
+    end: np.ndarray
+    feed: float
+    inverse_time: bool = False
+    block_time: float = float("nan")
+    units: str = "mm"
+    f_word: float | None = None
+    center: np.ndarray | None = None
+    plane: int = 17
+    cw: bool = False
+    sweep: float = 0.0
+    r0: float = 0.0
+    r1: float = 0.0
+
+    @property
+    def length(self) -> float:
+        """Path length, mm (helix: in-plane arc and normal travel combined)."""
+        if self.kind == "arc":
+            i, j, k = _PLANES[self.plane]
+            h = self.end[k] - self.start[k]
+            return float(math.hypot(0.5 * (self.r0 + self.r1) * self.sweep, h))
+        return float(np.linalg.norm(self.end - self.start))
+
+    def point(self, s):
+        """Points at path parameters ``s`` (mm from the start, clipped to [0, length]).
+
+        Returns
+        -------
+        (n, 3) ndarray, mm
+        """
+        s = np.atleast_1d(np.asarray(s, float))
+        L = self.length
+        u = np.clip(s / L, 0.0, 1.0) if L > 0 else np.zeros_like(s)
+        if self.kind != "arc":
+            return self.start + np.outer(u, self.end - self.start)
+        i, j, k = _PLANES[self.plane]
+        a0 = math.atan2(self.start[j] - self.center[j], self.start[i] - self.center[i])
+        ang = a0 + (-1.0 if self.cw else 1.0) * self.sweep * u
+        r = self.r0 + (self.r1 - self.r0) * u
+        out = np.empty((u.size, 3))
+        out[:, i] = self.center[i] + r * np.cos(ang)
+        out[:, j] = self.center[j] + r * np.sin(ang)
+        out[:, k] = self.start[k] + (self.end[k] - self.start[k]) * u
+        # the end point exactly as programmed
+        out[u >= 1.0] = self.end
+        return out
+
+
+@dataclass
+class Program:
+    """A parsed part program.
+
+    Attributes
+    ----------
+    blocks : list[Block]      motion and dwell blocks in program order
+    start : ndarray (3,), mm  position before the first block (the origin)
+    ignored : list of (line, word)   words passed over (S, M, T, ...)
+    source : str
+    lines : list[str]         the program text, line by line
+    axes_used : list[str]     axes that move (``x``, ``y``, ``z``)
+    """
+
+    blocks: list
+    start: np.ndarray
+    ignored: list = field(default_factory=list)
+    source: str = "<string>"
+    lines: list = field(default_factory=list)
+
+    @property
+    def axes_used(self):
+        moved = np.zeros(3, bool)
+        for b in self.blocks:
+            if b.kind != "dwell":
+                moved |= np.abs(b.end - b.start) > 0
+                if b.kind == "arc":
+                    i, j, _ = _PLANES[b.plane]
+                    moved[[i, j]] = True
+        return [a for a, m in zip("xyz", moved) if m]
+
+
+def read_program(path, start=(0.0, 0.0, 0.0)):
+    """Read a part program file (see module docstring); the file is only read."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8", errors="strict")
+    except FileNotFoundError:
+        raise InputError("no such file", source=str(path)) from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"is not a text file ({exc.reason})", source=str(path)) from None
+    return parse_program(text, source=str(path), start=start)
+
+
+def _strip_comments(raw, source, row):
+    """The code part of a line (comments removed) and whether it was a '%' line."""
+    out, depth, k = [], 0, 0
+    while k < len(raw):
+        c = raw[k]
+        if c == "(":
+            if depth:
+                raise InputError("nested '(' in a comment", source=source, row=row)
+            depth = 1
+        elif c == ")":
+            if not depth:
+                raise InputError("')' without '('", source=source, row=row)
+            depth = 0
+        elif c == ";" and not depth:
+            break
+        elif not depth:
+            out.append(c)
+        k += 1
+    if depth:
+        raise InputError("comment '(' is not closed on its line", source=source, row=row)
+    return "".join(out)
+
+
+def tokenize(code, source="<string>", row=None):
+    """Words of a comment-free line as (letter, value, text) tuples; letter upper case.
+
+    Raises InputError on anything that is not a letter followed by a number.
+    """
+    words, pos = [], 0
+    code = code.rstrip()
+    while pos < len(code):
+        if code[pos].isspace():
+            pos += 1
+            continue
+        m = _WORD.match(code, pos)
+        if not m:
+            bad = code[pos:].split()[0] if code[pos:].split() else code[pos:]
+            raise InputError(f"cannot read '{bad}' (expected a letter followed by a number, "
+                             f"e.g. G1 X10.5 F600)", source=source, row=row)
+        words.append((m.group(1).upper(), float(m.group(2)), m.group(0).strip()))
+        pos = m.end()
+    return words
+
+
+def parse_program(text, source="<string>", start=(0.0, 0.0, 0.0)):
+    """Parse a part program (see module docstring).
+
+    Parameters
+    ----------
+    text : str
+    source : str    name used in error messages
+    start : (3,) mm  machine position before the first block
+
+    Returns
+    -------
+    Program
+    """
+    pos = np.asarray(start, float).copy()
+    if pos.shape != (3,):
+        raise InputError(f"start must be (x, y, z), got {start!r}", column="start")
+    st = {"motion": None, "plane": 17, "units": "mm", "distance": 90, "arc distance": 91.1,
+          "feed mode": 94, "feed": None, "f_word": None}
+    blocks, ignored = [], []
+    lines = text.splitlines()
+    for row, raw in enumerate(lines, 1):
+        line = raw.strip()
+        if not line or line.startswith("%"):
+            continue
+        if line.startswith("/"):             # block delete switch off: the block runs
+            line = line[1:]
+        code = _strip_comments(line, source, row)
+        words = tokenize(code, source, row)
+        if not words:
+            continue
+        b = _block(words, st, pos, source, row, raw, len(blocks), ignored)
+        if b is not None:
+            blocks.append(b)
+            pos = b.end.copy()
+    return Program(blocks=blocks, start=np.asarray(start, float), ignored=ignored, source=source,
+                   lines=lines)
+
+
+def _err(msg, source, row):
+    return InputError(msg, source=source, row=row)
+
+
+def _block(words, st, pos, source, row, raw, index, ignored):
+    number = None
+    gcodes, vals = [], {}
+    for k, (letter, value, txt) in enumerate(words):
+        if letter == "N":
+            if k != 0:
+                raise _err(f"line number '{txt}' must be the first word", source, row)
+            number = int(value)
+        elif letter == "O":
+            ignored.append((row, txt))
+        elif letter == "G":
+            g = round(value, 1)
+            g = int(g) if g == int(g) else g
+            if g in _IGNORED_G:
+                ignored.append((row, txt))
+            elif g in _GROUPS:
+                gcodes.append((g, txt))
+            else:
+                raise _err(f"G code '{txt}' is not supported (read: G0 G1 G2 G3 G4 G17 G18 G19 G20 "
+                           f"G21 G90 G91 G90.1 G91.1 G93 G94)", source, row)
+        elif letter in _IGNORED_LETTERS:
+            ignored.append((row, txt))
+        elif letter in "XYZIJKRFP":
+            if letter in vals:
+                raise _err(f"word '{letter}' appears twice", source, row)
+            vals[letter] = value
+        else:
+            kind = "axis" if letter in "ABCUVW" else "word"
+            raise _err(f"{kind} '{txt}' is not supported (linear axes X Y Z, arcs I J K R, feed F)",
+                       source, row)
+    groups = {}
+    for g, txt in gcodes:
+        grp = _GROUPS[g]
+        if grp in groups:
+            raise _err(f"'{groups[grp][1]}' and '{txt}' are both {grp} codes", source, row)
+        groups[grp] = (g, txt)
+    if "motion" in groups and "dwell" in groups:
+        raise _err("G4 and a motion code in one block", source, row)
+    # modal state first (RS-274 order of execution: feed mode, feed, plane, units, distance, motion)
+    for grp in ("feed mode", "plane", "distance", "arc distance"):
+        if grp in groups:
+            st[grp] = groups[grp][0]
+    if "units" in groups:
+        st["units"] = "inch" if groups["units"][0] == 20 else "mm"
+    scale = INCH if st["units"] == "inch" else 1.0
+    if "F" in vals:
+        if not vals["F"] > 0:
+            raise _err(f"feed F must be > 0, got {vals['F']:g}", source, row)
+        st["f_word"] = vals["F"]
+        if st["feed mode"] == 94:
+            st["feed"] = vals["F"] * scale / 60.0      # mm/s
+    if "dwell" in groups:
+        if "P" not in vals or not vals["P"] >= 0:
+            raise _err("G4 needs P<seconds> >= 0", source, row)
+        extra = [w for w in vals if w not in ("P", "F")]
+        if extra:
+            raise _err(f"G4 takes only P, got {extra}", source, row)
+        return Block(index, row, number, raw, "dwell", pos.copy(), pos.copy(), 0.0,
+                     block_time=float(vals["P"]), units=st["units"])
+    if "P" in vals:
+        raise _err("P is only read with G4 (dwell)", source, row)
+    if "motion" in groups:
+        st["motion"] = groups["motion"][0]
+    axis_words = [w for w in "XYZ" if w in vals]
+    arc_words = [w for w in "IJKR" if w in vals]
+    if not axis_words and not arc_words:
+        if "motion" in groups and groups["motion"][0] in (2, 3):
+            raise _err(f"{groups['motion'][1]} without end point or centre", source, row)
+        return None                      # modal settings only
+    if st["motion"] is None:
+        raise _err("axis words without a motion mode (G0, G1, G2 or G3) in force", source, row)
+    motion = st["motion"]
+    end = pos.copy()
+    for a, w in enumerate("XYZ"):
+        if w in vals:
+            v = vals[w] * scale
+            end[a] = end[a] + v if st["distance"] == 91 else v
+    units = st["units"]
+    inverse = st["feed mode"] == 93 and motion != 0
+    if motion == 0:
+        if arc_words:
+            raise _err(f"G0 takes no {'/'.join(arc_words)}", source, row)
+        return Block(index, row, number, raw, "rapid", pos.copy(), end, math.inf, units=units,
+                     f_word=st["f_word"])
+    if inverse:
+        if "F" not in vals:
+            raise _err(f"inverse-time (G93) block without F: every G1/G2/G3 needs its own F "
+                       f"(1/minutes)", source, row)
+        block_time = 60.0 / vals["F"]
+    elif st["feed"] is None:
+        raise _err(f"no feed rate: G{motion} needs an F word (none programmed yet)", source, row)
+    if motion == 1:
+        if arc_words:
+            raise _err(f"G1 takes no {'/'.join(arc_words)}", source, row)
+        b = Block(index, row, number, raw, "line", pos.copy(), end, 0.0, units=units, f_word=st["f_word"])
+    else:
+        b = _arc(index, row, number, raw, pos.copy(), end, motion == 2, st, vals, scale, source)
+    if inverse:
+        b.inverse_time, b.block_time = True, block_time
+        b.feed = b.length / block_time if b.length > 0 else math.inf
+    else:
+        b.feed = st["feed"]
+    return b
+
+
+def _arc(index, row, number, raw, start, end, cw, st, vals, scale, source):
+    plane = st["plane"]
+    i, j, k = _PLANES[plane]
+    name = f"G{2 if cw else 3}"
+    has_r = "R" in vals
+    offs = [w for w in "IJK" if w in vals]
+    allowed = {_OFFSET_LETTER[i], _OFFSET_LETTER[j]}
+    if has_r and offs:
+        raise _err(f"{name} with both R and {'/'.join(offs)}: give one", source, row)
+    if not has_r and not offs:
+        raise _err(f"{name} needs a centre (I J K) or a radius (R)", source, row)
+    bad = [w for w in offs if w not in allowed]
+    if bad:
+        raise _err(f"{name} in {_PLANE_NAMES[plane]} takes centre words {'/'.join(sorted(allowed))}, "
+                   f"not {'/'.join(bad)}", source, row)
+    p0 = np.array([start[i], start[j]])
+    p1 = np.array([end[i], end[j]])
+    if has_r:
+        R = vals["R"] * scale
+        d = float(np.linalg.norm(p1 - p0))
+        if d == 0:
+            raise _err(f"{name} with R needs an end point different from the start", source, row)
+        if abs(R) < d / 2 * (1 - 1e-9):
+            raise _err(f"arc radius |R| = {abs(R):.6g} mm is smaller than half the chord "
+                       f"({d / 2:.6g} mm)", source, row)
+        h = math.sqrt(max(R * R - d * d / 4, 0.0))
+        mid = (p0 + p1) / 2
+        perp = np.array([-(p1 - p0)[1], (p1 - p0)[0]]) / d        # left of the chord
+        # the centre of the shorter arc lies right of the chord for a clockwise arc
+        side = -1.0 if cw else 1.0
+        if R < 0:
+            side = -side
+        c = mid + side * h * perp
+    else:
+        off = np.array([vals.get(_OFFSET_LETTER[i], 0.0), vals.get(_OFFSET_LETTER[j], 0.0)]) * scale
+        c = off if st["arc distance"] == 90.1 else p0 + off
+    r0 = float(np.linalg.norm(p0 - c))
+    r1 = float(np.linalg.norm(p1 - c))
+    if r0 == 0:
+        raise _err(f"{name}: the start point is the centre (radius 0)", source, row)
+    tol = _RADIUS_ABS_TOL + _RADIUS_REL_TOL * max(r0, r1)
+    if abs(r1 - r0) > tol:
+        raise _err(f"{name}: the end point is not on the arc: radius {r0:.6g} mm at the start, "
+                   f"{r1:.6g} mm at the end (difference {abs(r1 - r0):.3g} mm > {tol:.3g} mm)",
+                   source, row)
+    a0 = math.atan2(p0[1] - c[1], p0[0] - c[0])
+    a1 = math.atan2(p1[1] - c[1], p1[0] - c[0])
+    sweep = (a0 - a1) if cw else (a1 - a0)
+    sweep %= 2 * math.pi
+    if sweep < 1e-12 and not has_r:
+        sweep = 2 * math.pi                  # full circle
+    centre = start.copy()
+    centre[i], centre[j] = c
+    return Block(index, row, number, raw, "arc", start, end, 0.0, units=st["units"],
+                 f_word=st["f_word"], center=centre, plane=plane, cw=cw, sweep=float(sweep),
+                 r0=r0, r1=r1)
+
+
+def write_program(program, feeds_mm_s, path=None, header=None):
+    """The program with new feeds: every feed block gets an explicit F (program units).
+
+    Parameters
+    ----------
+    program : Program
+    feeds_mm_s : dict block index -> new path feed, mm/s (blocks left out keep theirs)
+    path : optional file to write
+    header : str, optional   a comment line put first
+
+    Returns
+    -------
+    str, the new program text. G93 blocks get F scaled by the feed ratio (inverse time is
+    proportional to the feed); G94 blocks get F in units/min.
+    """
+    by_line = {}
+    for b in program.blocks:
+        if b.index in feeds_mm_s and b.kind in ("line", "arc"):
+            by_line[b.line] = b
+    out = []
+    if header:
+        out.append(f"({_safe_comment(header)})")
+    for row, raw in enumerate(program.lines, 1):
+        b = by_line.get(row)
+        if b is None:
+            out.append(raw)
+            continue
+        new = float(feeds_mm_s[b.index])
+        if b.inverse_time:
+            fword = 60.0 / b.block_time * new / b.feed
+        else:
+            fword = new * 60.0 / (INCH if b.units == "inch" else 1.0)
+        out.append(_replace_f(raw, fword))
+    text = "\n".join(out) + "\n"
+    if path is not None:
+        Path(path).write_text(text, encoding="utf-8")
+    return text
+
+
+def _safe_comment(s):
+    return str(s).replace("(", "[").replace(")", "]").replace("\n", " ")
+
+
+def _replace_f(raw, fword):
+    """Replace (or append) the F word in the code part of a line, leaving comments alone."""
+    code_end = len(raw)
+    depth = 0
+    for k, c in enumerate(raw):
+        if c == "(":
+            depth = 1
+        elif c == ")":
+            depth = 0
+        elif c == ";" and not depth:
+            code_end = k
+            break
+    # remove F words outside comments
+    pieces, k, depth, code = [], 0, 0, raw[:code_end]
+    while k < len(code):
+        c = code[k]
+        if c == "(":
+            depth = 1
+        if depth == 0 and c in "Ff":
+            m = _WORD.match(code, k)
+            if m:
+                k = m.end()
+                continue
+        if c == ")":
+            depth = 0
+        pieces.append(c)
+        k += 1
+    body = "".join(pieces).rstrip()
+    return f"{body} F{fword:.6g}" + (" " + raw[code_end:] if code_end < len(raw) else "")

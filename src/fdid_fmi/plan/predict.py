@@ -1,0 +1,224 @@
+"""Predicted tracking and contour errors of a program, per NC block and for the whole program.
+
+The twin is either a :class:`~fdid_fmi.model.DriveModel` run by
+:func:`fdid_fmi.simulate.simulate` or an exported FMU run by ``fmpy.simulate_fmu`` with an input
+table (outputs recorded after each ``doStep``: the row at t_k + h is the model's position at
+t_k + h, input k held; the tracking error is formed here as e = x_cmd - x at the same time).
+
+Contour error (as :func:`fdid_fmi.metrics.contour_error`: the shortest distance from the
+predicted point to the commanded path, here the polyline of the commanded samples, which lies
+on the programmed geometry to < 0.1 um), **signed** in the plane of the model's two axes:
+positive when the tool is left of the direction of travel (inside a counter-clockwise arc,
+outside a clockwise one), negative when right.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..metrics import rms
+
+
+def signed_contour_error(cmd, act, window=400):
+    """Signed shortest distance from each actual point to the commanded polyline.
+
+    Parameters
+    ----------
+    cmd, act : (N, d) arrays, mm (d = 2 gives a sign; other d: unsigned distance)
+    window : int   only segments within +-window samples of the same index are searched
+
+    Returns
+    -------
+    (N,) ndarray, mm; for d = 2 positive = left of the direction of travel
+    """
+    P = np.asarray(cmd, float)
+    Q = np.asarray(act, float)
+    if P.shape != Q.shape or P.ndim != 2:
+        raise InputError(f"contour error needs two (N, d) arrays, got {P.shape} and {Q.shape}",
+                         column="contour")
+    N, dim = P.shape
+    if N < 2:
+        return np.linalg.norm(Q - P, axis=1)
+    A, AB = P[:-1], np.diff(P, axis=0)
+    L2 = np.einsum("ij,ij->i", AB, AB)
+    moving = L2 > 0
+    L2s = np.where(moving, L2, 1.0)
+    out = np.empty(N)
+    chunk = 512
+    for k0 in range(0, N, chunk):
+        ks = np.arange(k0, min(N, k0 + chunk))
+        lo, hi = max(0, k0 - window), min(N - 1, ks[-1] + window + 1)
+        seg = slice(lo, hi)
+        AQ = Q[ks, None, :] - A[None, seg, :]
+        t = np.clip(np.einsum("ksj,sj->ks", AQ, AB[seg]) / L2s[None, seg], 0.0, 1.0)
+        D = AQ - t[..., None] * AB[None, seg, :]
+        dist = np.sqrt(np.einsum("ksj,ksj->ks", D, D))
+        idx = np.arange(lo, hi)[None, :]
+        far = np.abs(idx - ks[:, None]) > window
+        # a segment of zero length (the command at rest) only counts when nothing moves nearby
+        dist = np.where(far, np.inf, dist)
+        dist_m = np.where(moving[None, seg], dist, np.inf)
+        use_m = np.isfinite(dist_m).any(axis=1)
+        dd = np.where(use_m[:, None], dist_m, dist)
+        best = np.argmin(dd, axis=1)
+        r = np.arange(ks.size)
+        val = dd[r, best]
+        if dim == 2:
+            ab = AB[seg][best]
+            d = D[r, best]
+            cross = ab[:, 0] * d[:, 1] - ab[:, 1] * d[:, 0]
+            val = np.where(cross < 0, -val, val)
+        out[ks] = val
+    return out
+
+
+@dataclass
+class Prediction:
+    """What the twin predicts for one interpolated program.
+
+    Attributes
+    ----------
+    interp : Interpolation      the commanded positions
+    axes : list[str]            simulated axes (the model's)
+    position, error : dict axis -> (N,) ndarray, mm   predicted position and e = x_cmd - x
+    contour : (N,) ndarray, mm  signed contour error (zeros for a one-axis model)
+    blocks : list[dict]         per-block figures (see :func:`block_table`)
+    summary : dict              whole program: cycle time, RMS / MAX per axis and contour
+    engine : str                ``model`` or ``fmu``
+    """
+
+    interp: object
+    axes: list
+    position: dict
+    error: dict
+    contour: np.ndarray
+    blocks: list = field(default_factory=list)
+    summary: dict = field(default_factory=dict)
+    engine: str = "model"
+
+
+def run_model(model, interp):
+    """Predicted positions {axis: (N,)} from :func:`fdid_fmi.simulate.simulate` (at rest at the
+    first commanded position)."""
+    from ..simulate import simulate
+    missing = [a for a in model.axes if a not in interp.positions]
+    if missing:
+        raise InputError(f"the model's axes {missing} are not x, y or z", column="axes")
+    res = simulate(model, {a: interp.positions[a] for a in model.axes}, Ts=interp.Ts)
+    return {a: np.asarray(res.axes[a]["position"], float) for a in model.axes}
+
+
+def fmu_axes(fmu_path):
+    """Axes of an fdid FMU (inputs named ``<axis>_x_cmd``) and its step size (s)."""
+    from fmpy import read_model_description
+    try:
+        md = read_model_description(str(fmu_path))
+    except Exception as exc:  # noqa: BLE001 - fmpy raises many kinds
+        raise InputError(f"is not a readable FMU ({exc})", source=str(fmu_path)) from None
+    axes = [v.name[:-6] for v in md.modelVariables if v.causality == "input" and v.name.endswith("_x_cmd")]
+    step = md.defaultExperiment.stepSize if md.defaultExperiment is not None else None
+    if not axes:
+        raise InputError("the FMU has no '<axis>_x_cmd' inputs: not an fdid drive FMU", source=str(fmu_path))
+    return axes, (float(step) if step else None)
+
+
+def run_fmu(fmu_path, interp, axes):
+    """Predicted positions {axis: (N,)} from the FMU through ``fmpy.simulate_fmu`` (an input
+    table with the commanded positions at every sample; communication step = Ts)."""
+    import fmpy
+    Ts, N = interp.Ts, interp.n
+    dtype = [("time", np.float64)] + [(f"{a}_x_cmd", np.float64) for a in axes]
+    table = np.zeros(N, dtype=dtype)
+    table["time"] = interp.t
+    for a in axes:
+        table[f"{a}_x_cmd"] = interp.positions[a]
+    res = fmpy.simulate_fmu(str(fmu_path), start_time=0.0, stop_time=float(interp.t[-1]),
+                            step_size=Ts, output_interval=Ts, input=table,
+                            output=[f"{a}_x" for a in axes])
+    if len(res) != N:
+        raise InputError(f"the FMU returned {len(res)} rows for {N} samples", source=str(fmu_path))
+    return {a: np.asarray(res[f"{a}_x"], float) for a in axes}
+
+
+def predict(interp, model=None, fmu=None, tol_mm=None, program=None):
+    """Predicted tracking and contour errors of an interpolated program.
+
+    Parameters
+    ----------
+    interp : Interpolation
+    model : DriveModel, optional    (one of model / fmu)
+    fmu : path of an fdid FMU, optional
+    tol_mm : float, optional        contour tolerance: blocks whose |contour error| exceeds it are
+        flagged
+    program : Program, optional     for the per-block table's line numbers and feeds
+
+    Returns
+    -------
+    Prediction
+    """
+    if (model is None) == (fmu is None):
+        raise InputError("give a model or an FMU (one of them)", column="--model/--fmu")
+    if model is not None:
+        axes = list(model.axes)
+        pos = run_model(model, interp)
+        engine = "model"
+    else:
+        axes, _ = fmu_axes(fmu)
+        pos = run_fmu(fmu, interp, axes)
+        engine = "fmu"
+    err = {a: interp.positions[a] - pos[a] for a in axes}
+    if len(axes) >= 2:
+        c2 = axes[:2] if len(axes) == 2 else axes
+        cmd = np.column_stack([interp.positions[a] for a in c2])
+        act = np.column_stack([pos[a] for a in c2])
+        contour = signed_contour_error(cmd, act)
+    else:
+        contour = np.zeros(interp.n)
+    pr = Prediction(interp=interp, axes=axes, position=pos, error=err, contour=contour, engine=engine)
+    pr.blocks = block_table(pr, program, tol_mm)
+    pr.summary = summary(pr, tol_mm)
+    return pr
+
+
+def block_table(pr, program=None, tol_mm=None):
+    """Per-block figures: line, N, kind, feed, duration, max |e| per axis and contour RMS / MAX
+    (um), flagged when the max |contour error| exceeds ``tol_mm`` (cutting blocks only)."""
+    ip = pr.interp
+    rows = []
+    blocks = program.blocks if program is not None else [None] * len(ip.spans)
+    for b, (k0, k1) in zip(blocks, ip.spans):
+        idx = b.index if b is not None else len(rows)
+        sel = ip.block_of_sample == idx
+        row = {"block": idx + 1}
+        if b is not None:
+            row.update({"line": b.line, "N": b.number if b.number is not None else "", "kind": b.kind,
+                        "feed_mm_min": (b.feed * 60.0 if np.isfinite(b.feed) else float("inf")),
+                        "length_mm": b.length})
+        row["duration_s"] = (k1 - k0) * ip.Ts
+        for a in pr.axes:
+            row[f"{a}_max_err_um"] = float(np.max(np.abs(pr.error[a][sel]))) * 1e3 if sel.any() else 0.0
+        c = pr.contour[sel]
+        row["contour_rms_um"] = rms(c) * 1e3 if c.size else 0.0
+        row["contour_max_um"] = float(np.max(np.abs(c))) * 1e3 if c.size else 0.0
+        row["contour_signed_peak_um"] = float(c[np.argmax(np.abs(c))]) * 1e3 if c.size else 0.0
+        cutting = b is None or b.kind in ("line", "arc")
+        row["flag"] = bool(tol_mm is not None and cutting and row["contour_max_um"] > tol_mm * 1e3)
+        rows.append(row)
+    return rows
+
+
+def summary(pr, tol_mm=None):
+    ip = pr.interp
+    out = {"engine": pr.engine, "cycle_time_s": ip.cycle_time, "samples": ip.n, "Ts_s": ip.Ts,
+           "axes": {}}
+    for a in pr.axes:
+        out["axes"][a] = {"error_rms_um": rms(pr.error[a]) * 1e3,
+                          "error_max_um": float(np.max(np.abs(pr.error[a]))) * 1e3}
+    out["contour_rms_um"] = rms(pr.contour) * 1e3
+    out["contour_max_um"] = float(np.max(np.abs(pr.contour))) * 1e3
+    if tol_mm is not None:
+        out["tol_um"] = tol_mm * 1e3
+        out["flagged_blocks"] = [r["block"] for r in pr.blocks if r["flag"]]
+    return out
