@@ -1,19 +1,34 @@
 """``fdid`` command line: one sub-module per command group, each registering its parsers.
 
 Every command module exposes ``register(subparsers)``; the handler it sets as ``func``
-receives the parsed args and returns an exit code. Expected errors (``FdidError``) are
-printed as one clear line, without a traceback.
+receives the parsed args and returns an exit code.
+
+The boundary (:func:`main`) turns every failure into one line on stderr:
+
+* expected errors (``FdidError``: bad input, a failed build) -> ``fdid CMD: error: ...``
+  naming file, column/row or parameter; exit code 2;
+* file-system errors (``OSError``: disk full, permission) -> one line with the file name; 2;
+* out of memory -> one line; 2;  Ctrl-C -> ``interrupted``; 130;
+* anything else is a bug -> one line saying so and where to report it; exit code 3.
+
+The traceback is printed only with the global ``--debug`` flag (``fdid --debug CMD ...`` or
+``fdid CMD ... --debug``).
 """
 from __future__ import annotations
 
 import argparse
 import importlib
 import sys
+import traceback
 
 from ..errors import FdidError
 
 # command modules, in the order their commands are listed in --help
 MODULES = ("identify", "simulate", "export", "validate", "diagnose", "plan", "align", "fleet", "demo")
+
+BUG_REPORT = ("this is a bug in fdid-fmi; please report it to the fdid-fmi maintainers (issue "
+              "tracker of the project) with the command line and the output of the same command "
+              "with --debug")
 
 
 def build_parser():
@@ -21,6 +36,8 @@ def build_parser():
         prog="fdid", description="Feed-drive digital twins from CNC servo traces, as FMI FMUs.")
     from .. import __version__
     parser.add_argument("--version", action="version", version=f"fdid-fmi {__version__}")
+    parser.add_argument("--debug", action="store_true",
+                        help="print the Python traceback of an error (for bug reports)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in MODULES:
         try:
@@ -30,20 +47,69 @@ def build_parser():
                 continue  # command not built yet
             raise
         mod.register(sub)
+    for sp in sub.choices.values():   # --debug also after the command name
+        try:
+            sp.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                            help="print the Python traceback of an error (for bug reports)")
+        except argparse.ArgumentError:
+            pass  # the command defines its own --debug
     return parser
+
+
+def _one_line(text):
+    """First line of a message; the rest is available with --debug."""
+    lines = [ln for ln in str(text).splitlines() if ln.strip()]
+    if not lines:
+        return "(no message)"
+    return lines[0] + (" (details with --debug)" if len(lines) > 1 else "")
+
+
+def _oserror_text(exc):
+    name = exc.filename if exc.filename is not None else None
+    what = exc.strerror or str(exc)
+    return f"{name}: {what}" if name is not None else what
 
 
 def main(argv=None):
     parser = build_parser()
     args = parser.parse_args(argv)
+    debug = bool(getattr(args, "debug", False))
+    cmd = f"fdid {args.command}"
     try:
         return int(args.func(args) or 0)
     except FdidError as exc:
-        print(f"fdid {args.command}: error: {exc}", file=sys.stderr)
+        if debug:
+            traceback.print_exc()
+        print(f"{cmd}: error: {exc if debug else _one_line(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except MemoryError:
+        if debug:
+            traceback.print_exc()
+        print(f"{cmd}: error: out of memory (the input is too large for this machine)", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        if debug:
+            traceback.print_exc()
+        print(f"{cmd}: error: {_one_line(_oserror_text(exc))}", file=sys.stderr)
+        return 2
+    except Exception as exc:  # noqa: BLE001 - the boundary: one line, never a bare traceback
+        import zipfile
+        if isinstance(exc, zipfile.BadZipFile):
+            # a file that should be an FMU (zip archive) is not one
+            if debug:
+                traceback.print_exc()
+            where = getattr(args, "fmu", None) or getattr(args, "model", None)
+            print(f"{cmd}: error: {where + ': ' if where else ''}is not an FMU (not a zip archive: {exc})",
+                  file=sys.stderr)
+            return 2
+        if debug:
+            traceback.print_exc()
+        print(f"{cmd}: internal error: {type(exc).__name__}: {_one_line(exc)} -- {BUG_REPORT}",
+              file=sys.stderr)
+        return 3
 
 
 if __name__ == "__main__":

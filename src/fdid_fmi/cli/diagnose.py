@@ -12,6 +12,7 @@ import sys
 
 from ..errors import InputError
 from ..model import DriveModel, load_model
+from ..outputs import atomic_write, check_output, same_file
 from .mapping import add_trace_arguments, trace_from_args
 
 
@@ -64,9 +65,26 @@ def _ranged(trace, text, name):
     return trace.slice(a, b)
 
 
+def _check_outputs(args):
+    """Every output path: writable, not an input, not two outputs on one file (before the work)."""
+    inputs = [args.model, args.train] + ([args.val] if args.val else [])
+    outs = [(args.output, "model file"), (args.report, "HTML report"), (args.json, "JSON summary")]
+    outs = [(p, w) for p, w in outs if p]
+    for k, (p, what) in enumerate(outs):
+        check_output(p, inputs=inputs, what=what)
+        for q, other in outs[:k]:
+            if same_file(p, q):
+                raise InputError(f"the {what} and the {other} are the same file", source=str(p))
+
+
 def run(args):
     from ..diagnose import diagnose
     from ..diagnose.reporting import diagnosis_report, fmu_check
+    _check_outputs(args)
+    if not 1 <= args.max_steps <= 20:
+        raise InputError(f"--max-steps must be in 1 .. 20, got {args.max_steps}", column="--max-steps")
+    if not 1 <= args.maxiter <= 10000:
+        raise InputError(f"--maxiter must be in 1 .. 10000, got {args.maxiter}", column="--maxiter")
     model = load_model(args.model)
     if not isinstance(model, DriveModel):
         raise InputError("diagnosis needs a state-space model (pole search / MIMO), not a quasi-static one",
@@ -97,10 +115,17 @@ def run(args):
         d = diag.to_json()
         if fmu:
             d["fmu"] = fmu
-        with open(args.json, "w") as fh:
-            json.dump(d, fh, indent=1)
+        atomic_write(args.json, json.dumps(d, indent=1))
         print(f"JSON summary written to {args.json}")
     if args.report:
-        diagnosis_report(diag, fmu=fmu, model_source=args.model).write(args.report)
+        html = diagnosis_report(diag, fmu=fmu, model_source=args.model)
+        _write_report(html, args.report)
         print(f"report written to {args.report}")
     return 0
+
+
+def _write_report(report, path):
+    """Write a report atomically: render it into a temporary file beside ``path``, then move it."""
+    from ..outputs import atomic_path
+    with atomic_path(path) as tmp:
+        report.write(tmp)

@@ -4,6 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..model import load_model
+from ..outputs import check_output
 
 
 def register(sub):
@@ -27,8 +28,9 @@ def register(sub):
 
 def run(args):
     from ..fmu import export_fmu
-    model = load_model(args.model)
     out = Path(args.output) if args.output else Path(args.model).with_suffix(".fmu")
+    check_output(out, inputs=[args.model], what="FMU", suffix=".fmu")
+    model = load_model(args.model)
     platforms = [s.strip() for s in args.platforms.split(",") if s.strip()]
     path = export_fmu(model, out, fmi_version=int(args.fmi), platforms=platforms,
                       backend=args.backend, model_identifier=args.name)

@@ -1,13 +1,47 @@
 """``fdid identify``: trace -> model JSON (quasi-static, full-ls, pole-search, mimo)."""
 from __future__ import annotations
 
+import argparse
+import math
 import sys
 
 from ..errors import InputError
-from ..model import DriveModel
+from ..model import DriveModel, check_name
+from ..outputs import check_output
 from .mapping import add_trace_arguments, trace_from_args
 
 METHODS = ("quasi-static", "full-ls", "pole-search", "mimo")
+OUTPUT_KINDS = ("error", "velocity", "position", "tool_position", "tool_error", "acceleration")
+MAX_REAL, MAX_COMPLEX, MAX_ORDER = 6, 6, 12     # poles searched per block (bounded work)
+MAX_INTEGRATORS = 3
+MAX_DC_ORDER = 3
+
+
+def _int_in(lo, hi, what):
+    """argparse type: an integer in [lo, hi]."""
+    def conv(text):
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{text}' is not an integer") from None
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{what} must be in {lo} .. {hi}, got {v}")
+        return v
+    return conv
+
+
+def _finite_float(what, positive=False):
+    """argparse type: a finite float (> 0 when ``positive``)."""
+    def conv(text):
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+        if not math.isfinite(v) or (positive and not v > 0):
+            raise argparse.ArgumentTypeError(f"{what} must be a finite number{' > 0' if positive else ''}, "
+                                             f"got {text}")
+        return v
+    return conv
 
 def register(sub):
     p = sub.add_parser("identify", help="identify a drive model from a trace",
@@ -20,9 +54,10 @@ def register(sub):
     s = p.add_argument_group("pole search")
     s.add_argument("--search", choices=("de", "multistart", "direct"), default="de",
                    help="global optimiser (thesis: GlobalSearch / MultiStart / pattern search)")
-    s.add_argument("--seed", type=int, default=0)
-    s.add_argument("--maxiter", type=int, default=None)
-    s.add_argument("--v-tilde", type=float, default=None,
+    s.add_argument("--seed", type=_int_in(0, 2 ** 32 - 1, "the seed"), default=0,
+                   help="random seed of the search, 0 .. 2**32-1 (default 0)")
+    s.add_argument("--maxiter", type=_int_in(1, 100000, "--maxiter"), default=None)
+    s.add_argument("--v-tilde", type=_finite_float("--v-tilde", positive=True), default=None,
                    help="fix the friction transition velocity [mm/s] (default: searched)")
     s.add_argument("--v-tilde-range", default=None, metavar="LO:HI", help="search range of v_tilde [mm/s]")
     s.add_argument("--no-integral-action", action="store_true",
@@ -31,7 +66,7 @@ def register(sub):
     s.add_argument("--no-friction", action="store_true", help="leave the friction input out")
     s.add_argument("--velocity", choices=("backward", "central"), default="backward",
                    help="measured velocity estimate driving friction")
-    s.add_argument("--ma-order", type=int, default=1, help="moving-average order of that velocity")
+    s.add_argument("--ma-order", type=_int_in(1, 1000, "--ma-order"), default=1, help="moving-average order of that velocity")
     s.add_argument("--real-hz", action="append", default=None, metavar="LO:HI",
                    help="bounds of one real pole [Hz] (repeat per pole; sets the number of real poles)")
     s.add_argument("--omega-hz", action="append", default=None, metavar="LO:HI",
@@ -39,8 +74,10 @@ def register(sub):
     s.add_argument("--zeta", action="append", default=None, metavar="LO:HI",
                    help="damping bounds of each complex pair (repeat per pair, same order)")
     m = p.add_argument_group("mimo")
-    m.add_argument("--n-real", type=int, default=None, help="number of real poles searched")
-    m.add_argument("--n-complex", type=int, default=None, help="number of complex pairs searched")
+    m.add_argument("--n-real", type=_int_in(0, MAX_REAL, "--n-real"), default=None,
+                   help=f"number of real poles searched (0 .. {MAX_REAL})")
+    m.add_argument("--n-complex", type=_int_in(0, MAX_COMPLEX, "--n-complex"), default=None,
+                   help=f"number of complex pairs searched (0 .. {MAX_COMPLEX})")
     m.add_argument("--outputs", default="error",
                    help="comma list of outputs per axis: error, velocity, position, tool_position, "
                         "tool_error, acceleration")
@@ -55,26 +92,100 @@ def register(sub):
     m.add_argument("--external", action="append", default=[], metavar="CHANNEL",
                    help="use an extra trace channel as an input (e.g. pulses_N)")
     q = p.add_argument_group("quasi-static / full-ls")
-    q.add_argument("--cutoff-hz", type=float, default=None, help="Butterworth cutoff of the derivatives")
-    q.add_argument("--filter-order", type=int, default=2)
+    q.add_argument("--cutoff-hz", type=_finite_float("--cutoff-hz", positive=True), default=None,
+                   help="Butterworth cutoff of the derivatives")
+    q.add_argument("--filter-order", type=_int_in(1, 8, "--filter-order"), default=2)
     add_trace_arguments(p)
     p.set_defaults(func=run)
+
+def _pair(text, name):
+    """HZ:ZETA of a locked complex pair: two finite positive numbers."""
+    try:
+        hz, zeta = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise InputError(f"'{text}' is not HZ:ZETA (two numbers)", column=name) from None
+    if not (math.isfinite(hz) and math.isfinite(zeta) and hz > 0 and zeta > 0):
+        raise InputError(f"'{text}': expected HZ > 0 and ZETA > 0", column=name)
+    return hz, zeta
 
 def _range(text, name):
     try:
         lo, hi = (float(v) for v in text.split(":"))
     except ValueError:
-        raise InputError(f"'{text}' is not LO:HI", column=name) from None
+        raise InputError(f"'{text}' is not LO:HI (two numbers)", column=name) from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise InputError(f"'{text}': expected finite LO < HI", column=name)
     return lo, hi
 
-def _kv(items, name, conv):
+def _kv(items, name, conv, outputs, example):
+    """Parse OUTPUT=VALUE options; OUTPUT must be one of the identified ``outputs``."""
     out = {}
     for it in items:
         if "=" not in it:
-            raise InputError(f"'{it}' is not OUTPUT=VALUE", column=name)
-        k, v = it.split("=", 1)
-        out[k.strip()] = conv(v.strip())
+            raise InputError(f"'{it}' is not OUTPUT=VALUE (e.g. {example})", column=name)
+        k, v = (x.strip() for x in it.split("=", 1))
+        if k not in outputs:
+            raise InputError(f"'{it}' names the output '{k}', which is not identified; the outputs "
+                             f"are {list(outputs)} (--outputs)", column=name)
+        if k in out:
+            raise InputError(f"output '{k}' is given twice", column=name)
+        out[k] = conv(v, it)
     return out
+
+def _integrators(v, it):
+    try:
+        q = int(v)
+    except ValueError:
+        raise InputError(f"'{it}': the number of integrators must be an integer", column="--integrators") from None
+    if not 0 <= q <= MAX_INTEGRATORS:
+        raise InputError(f"'{it}': the number of integrators must be in 0 .. {MAX_INTEGRATORS}",
+                         column="--integrators")
+    return q
+
+def _dc_gain(v, it):
+    try:
+        q, val = v.split(":")
+        q, val = int(q), float(val)
+    except ValueError:
+        raise InputError(f"'{it}' is not OUTPUT=Q:VALUE (e.g. position=1:1.0)", column="--dc-gain") from None
+    if not 0 <= q <= MAX_DC_ORDER or not math.isfinite(val):
+        raise InputError(f"'{it}': Q must be in 0 .. {MAX_DC_ORDER} and VALUE finite", column="--dc-gain")
+    return q, val
+
+def check_arguments(args):
+    """Check the identification options before the trace is read (one line on a bad value)."""
+    n_real, n_complex = _orders(args)
+    if n_real + 2 * n_complex > MAX_ORDER:
+        raise InputError(f"{n_real} real poles and {n_complex} complex pairs make order "
+                         f"{n_real + 2 * n_complex}; at most {MAX_ORDER} per block", column="--n-real/--n-complex")
+    if n_real + n_complex == 0:
+        raise InputError("the search needs at least one pole", column="--n-real/--n-complex")
+    outputs = tuple(o.strip() for o in args.outputs.split(",") if o.strip())
+    for o in outputs:
+        if o not in OUTPUT_KINDS:
+            raise InputError(f"unknown output '{o}'; expected some of {', '.join(OUTPUT_KINDS)}",
+                             column="--outputs")
+    if not outputs or len(set(outputs)) != len(outputs):
+        raise InputError(f"'{args.outputs}': give each output once", column="--outputs")
+    _kv(args.integrators, "--integrators", _integrators, outputs, "acceleration=2")
+    _kv(args.dc_gain, "--dc-gain", _dc_gain, outputs, "position=1:1.0")
+    for c in args.lock_complex:
+        _pair(c, "--lock-complex")
+    for ch in args.external:
+        check_name(ch, "--external channel")
+    for a in args.axis or []:
+        check_name(a, "--axis")
+    for opt in ("real_hz", "omega_hz", "zeta"):
+        for r in getattr(args, opt) or []:
+            _range(r, "--" + opt.replace("_", "-"))
+    if args.v_tilde_range:
+        _range(args.v_tilde_range, "--v-tilde-range")
+
+def _orders(args):
+    n_real = args.n_real if args.n_real is not None else (len(args.real_hz) if args.real_hz else 1)
+    n_complex = args.n_complex if args.n_complex is not None else (
+        len(args.omega_hz) if args.omega_hz else 1)
+    return n_real, n_complex
 
 def bounds_from_args(args, Ts, n_real, n_complex):
     from ..identify.structure import Bounds, default_bounds
@@ -99,9 +210,7 @@ def identify_from_args(trace, args, progress=True):
         models = [idf.identify_full_ls(pieces, ax, cutoff_hz=args.cutoff_hz, order=args.filter_order)
                   for ax in axes]
         return models[0] if len(models) == 1 else DriveModel.combine(models, method="full-ls")
-    n_real = args.n_real if args.n_real is not None else (len(args.real_hz) if args.real_hz else 1)
-    n_complex = args.n_complex if args.n_complex is not None else (
-        len(args.omega_hz) if args.omega_hz else 1)
+    n_real, n_complex = _orders(args)
     bounds = bounds_from_args(args, trace.Ts, n_real, n_complex)
     common = dict(bounds=bounds, v_tilde=args.v_tilde, method=args.search, seed=args.seed,
                   maxiter=args.maxiter, progress=progress)
@@ -116,9 +225,9 @@ def identify_from_args(trace, args, progress=True):
     outputs = tuple(o.strip() for o in args.outputs.split(",") if o.strip())
     kw = dict(outputs=outputs, n_real=n_real, n_complex=n_complex, friction=not args.no_friction,
               integral_action=not args.no_integral_action,
-              integrators=_kv(args.integrators, "--integrators", int),
-              dc_gain=_kv(args.dc_gain, "--dc-gain", lambda v: (int(v.split(":")[0]), float(v.split(":")[1]))),
-              locked_complex=[_range(c, "--lock-complex") for c in args.lock_complex],
+              integrators=_kv(args.integrators, "--integrators", _integrators, outputs, "acceleration=2"),
+              dc_gain=_kv(args.dc_gain, "--dc-gain", _dc_gain, outputs, "position=1:1.0"),
+              locked_complex=[_pair(c, "--lock-complex") for c in args.lock_complex],
               velocity=args.velocity, ma_order=args.ma_order, externals=tuple(args.external))
     if args.coupled:
         st = idf.mimo_structure(tuple(axes), coupled=True, **kw)
@@ -164,6 +273,8 @@ def summary(model, trace=None):
     return lines
 
 def run(args):
+    check_output(args.output, inputs=[args.trace], what="model file")
+    check_arguments(args)
     trace = trace_from_args(args.trace, args)
     model = identify_from_args(trace, args, progress=sys.stderr.isatty())
     model.save(args.output)

@@ -18,6 +18,7 @@ from ..io import read_trace
 from ..io.columns import parse_key
 from ..io.ranges import parse_ranges
 from ..io.text import LAYOUTS
+from ..model import check_name
 from ..units import normalise_unit
 
 
@@ -122,6 +123,8 @@ def trace_from_args(path, args):
     layout = getattr(args, "layout", None) or "auto"
     axes = getattr(args, "axes", None)
     axes = tuple(a.strip() for a in axes.split(",") if a.strip()) if axes else None
+    for a in axes or ():
+        check_name(a, "--axes")
     suffix = str(path).lower().rsplit(".", 1)[-1]
     kw = {}
     if suffix == "mat":

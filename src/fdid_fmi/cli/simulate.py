@@ -1,11 +1,13 @@
 """``fdid simulate MODEL.json TRACE -o PRED.csv``: free-run prediction from the commands."""
 from __future__ import annotations
 
-from pathlib import Path
+import io
 
 import numpy as np
 
+from ..errors import InputError
 from ..model import load_model
+from ..outputs import atomic_write, check_output
 from ..simulate import simulate
 from .mapping import add_trace_arguments, trace_from_args
 
@@ -24,20 +26,37 @@ def register(sub):
 
 
 def write_prediction_csv(path, sim, axes):
-    cols = [sim.t]
-    header = ["t_s"]
-    for ax in axes:
-        cols += [sim.axes[ax]["position"], sim.axes[ax]["error"]]
-        header += [f"{ax}_x_pred_mm", f"{ax}_e_pred_mm"]
-    np.savetxt(path, np.column_stack(cols), delimiter=",", header=",".join(header), comments="",
-               fmt="%.12g")
-    return Path(path)
+    """Write ``t_s,<axis>_x_pred_mm,<axis>_e_pred_mm`` rows of one or several simulations
+    (``sim`` a result or a list of results, e.g. one per ``--range``) atomically.
+
+    Raises InputError when a predicted value is not finite (nothing is written then)."""
+    sims = sim if isinstance(sim, (list, tuple)) else [sim]
+    header = ["t_s"] + [f"{ax}_{q}_pred_mm" for ax in axes for q in ("x", "e")]
+    blocks = []
+    for r in sims:
+        cols = [r.t]
+        for ax in axes:
+            cols += [r.axes[ax]["position"], r.axes[ax]["error"]]
+        blocks.append(np.column_stack(cols))
+    data = np.vstack(blocks)
+    bad = ~np.isfinite(data)
+    if bad.any():
+        i, j = (int(v) for v in np.argwhere(bad)[0])
+        raise InputError(f"the prediction is not finite from row {i + 2} on; nothing written",
+                         source=str(path), column=header[j], row=i + 2)
+    buf = io.StringIO()
+    np.savetxt(buf, data, delimiter=",", header=",".join(header), comments="", fmt="%.12g")
+    return atomic_write(path, buf.getvalue())
 
 
 def run(args):
+    check_output(args.output, inputs=[args.model, args.trace], what="prediction CSV")
     model = load_model(args.model)
     trace = trace_from_args(args.trace, args)
-    sim = simulate(model, trace, start_velocity={} if args.at_rest else None)
-    write_prediction_csv(args.output, sim, model.axes)
-    print(f"prediction of {len(sim.t)} samples for axes {model.axes} written to {args.output}")
+    pieces = trace.select(trace.meta.get("ranges"))
+    sims = [simulate(model, t, start_velocity={} if args.at_rest else None) for t in pieces]
+    write_prediction_csv(args.output, sims, model.axes)
+    n = sum(len(r.t) for r in sims)
+    what = f" in {len(sims)} ranges" if len(sims) > 1 else ""
+    print(f"prediction of {n} samples{what} for axes {model.axes} written to {args.output}")
     return 0

@@ -50,6 +50,7 @@ MAP_ROLES = ROLES + ("err",)
 TIME_KEYS = ("t", "time")
 TIME_NAMES = {"t", "time", "zeit", "timestamp", "times"}
 AXIS_RE = re.compile(r"^(?:[xyzabcuvw]\d*|axis\d+)$")
+AXIS_NAME_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")   # any axis name (it becomes C/FMI names)
 
 # role keywords (the first token after the axis that is a keyword decides; see _role_from_tokens)
 ROLE_WORDS = {
@@ -97,6 +98,10 @@ def parse_key(key, source=None):
     axis, role = axis.strip(), role.strip().lower()
     if not axis:
         raise InputError(f"mapping key '{k}' has no axis name before the '.'", source=source, column=k)
+    if not AXIS_NAME_RE.fullmatch(axis) or len(axis) > 64:
+        raise InputError(f"mapping key '{k}': axis name '{axis}' is not a name; expected letters, "
+                         f"digits and '_' (not starting with a digit), e.g. x or axis1",
+                         source=source, column=k)
     if role not in MAP_ROLES:
         raise InputError(f"mapping key '{k}': unknown role '{role}'; expected one of "
                          f"{', '.join(MAP_ROLES)}", source=source, column=k)
