@@ -99,7 +99,7 @@ def _fmt(x):
 def _header(layout, guid, model_identifier, description):
     m = layout.model
     desc = description or (f"fdid-fmi feed-drive model ({m.method or 'state space'}; axes "
-                           f"{', '.join(layout.axes)}; {m.n_states} states; Ts = {m.Ts!r} s)")
+                           f"{', '.join(layout.axes)}; {m.n_states} states; Ts = {float(m.Ts)!r} s)")
     return desc, datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 

@@ -132,7 +132,7 @@ def check_exportable(model):
     for p in fr:
         lev = float(p.params.get("level", 1.0))
         if not (np.isfinite(lev) and lev >= 0):
-            raise InputError(f"friction level must be a finite number >= 0, got {lev!r}", column=p.name)
+            raise InputError(f"friction level must be a finite number >= 0, got {float(lev)!r}", column=p.name)
     for ax in model.axes:
         ps = [p for p in fr if p.axis == ax]
         if len({(float(p.params.get("level", 1.0)), float(p.params["v_tilde"])) for p in ps}) > 1:

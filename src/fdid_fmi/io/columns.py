@@ -332,7 +332,7 @@ def assemble(columns, *, source, mapping=None, units=None, file_units=None, rows
         bad = ~np.isfinite(arr)
         if bad.any():
             i = int(np.argmax(bad))
-            raise InputError(f"value {arr[i]!r} is not a finite number (NaN or inf)",
+            raise InputError(f"value {float(arr[i])!r} is not a finite number (NaN or inf)",
                              source=source, column=col, row=row_of(i))
         return arr
 
@@ -409,7 +409,7 @@ def check_time(t, *, source, column, row_of=None, jitter_tol=0.05):
     dt = np.diff(t)
     if (dt <= 0).any():
         k = int(np.argmax(dt <= 0))
-        raise InputError(f"time is not strictly increasing ({t[k]!r} s then {t[k + 1]!r} s)",
+        raise InputError(f"time is not strictly increasing ({float(t[k])!r} s then {float(t[k + 1])!r} s)",
                          source=source, column=column, row=row_of(k + 1))
     ts = float(np.median(dt))
     jit = np.abs(dt - ts) > jitter_tol * ts

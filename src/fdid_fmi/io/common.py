@@ -1,6 +1,7 @@
 """Small helpers shared by the readers: reading a user's file safely, hashing it."""
 from __future__ import annotations
 
+import codecs
 import hashlib
 from pathlib import Path
 
@@ -19,9 +20,31 @@ def check_file(path) -> Path:
     return p
 
 
+_BOMS = ((codecs.BOM_UTF32_LE, "utf-32"), (codecs.BOM_UTF32_BE, "utf-32"),
+         (codecs.BOM_UTF16_LE, "utf-16"), (codecs.BOM_UTF16_BE, "utf-16"))
+
+
 def read_text_file(path) -> str:
-    """Text of a user's file: UTF-8 (with or without BOM), else Latin-1. Read only."""
-    raw = check_file(path).read_bytes()
+    """Text of a user's file. Read only.
+
+    UTF-32 / UTF-16 with a byte-order mark, else UTF-8 (with or without BOM), else Latin-1
+    (old controller exports). A file with NUL bytes and no BOM (UTF-16 without BOM, or a
+    binary file) is refused with one line rather than read as garbage."""
+    p = check_file(path)
+    raw = p.read_bytes()
+    for bom, enc in _BOMS:
+        if raw.startswith(bom):
+            try:
+                return raw.decode(enc)
+            except UnicodeDecodeError as exc:
+                raise InputError(f"starts with a {enc.upper()} byte-order mark but is not valid "
+                                 f"{enc.upper()} text (byte {exc.start})", source=str(p)) from None
+    if b"\x00" in raw:
+        k = raw.index(b"\x00")
+        zeros = max(raw[0::2].count(0), raw[1::2].count(0))
+        hint = (" it looks like UTF-16 text without a byte-order mark; save it as UTF-8"
+                if zeros > 0.3 * len(raw) / 2 else " is it a binary file?")
+        raise InputError(f"is not a text file: NUL byte at offset {k};{hint}", source=str(p))
     try:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError:

@@ -244,8 +244,8 @@ def read_sinumerik_trace(path) -> Trace:
     Ts_file = _member(root, "float", "m_dProcessUpdateTime", source=src)
     t = t0 + (t1 - t0) / (n - 1) * np.arange(n)
     if not np.isclose((t1 - t0) / (n - 1), Ts_file, rtol=1e-6):
-        raise InputError(f"time vector step {(t1 - t0) / (n - 1)!r} s differs from "
-                         f"m_dProcessUpdateTime {Ts_file!r} s", source=src)
+        raise InputError(f"time vector step {float((t1 - t0) / (n - 1))!r} s differs from "
+                         f"m_dProcessUpdateTime {float(Ts_file)!r} s", source=src)
     means = [float(np.mean(s[2])) for s in sin]
     if len(sin) == 2 and means[0] * means[1] < 0:
         dirs = ["pos" if m > 0 else "neg" for m in means]

@@ -41,6 +41,7 @@ from .columns import assemble
 from .common import file_sha256, read_text_file
 
 LAYOUTS = ("auto", "columns", "siso-gui", "verify-gui")
+MAX_COLUMNS = 10000       # columns of a trace file (bounded work; servo traces have tens)
 GUI_COLUMNS = {"siso-gui": 3, "verify-gui": 5}
 GUI_TEXT = {
     "siso-gui": "time [s], measured position [mm], tracking error [mm]",
@@ -96,6 +97,10 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
     trailing = delim is not None and len(first) > 1 and first[-1] == ""  # "a,b,c," lines
     if trailing:
         first = first[:-1]
+    if len(first) > MAX_COLUMNS:
+        raise InputError(f"the first line has {len(first)} columns; at most {MAX_COLUMNS} are read "
+                         f"(is the delimiter right? detected: {DELIMITERS[delim]})",
+                         source=src, row=entries[0][0])
     comma_ok = delim != ","
     has_header = not all(_is_number(c) or (comma_ok and _DECIMAL_COMMA.match(c)) for c in first)
     # decimal comma: some cell of the first data rows looks like "1,25" and none has a "."
@@ -223,16 +228,18 @@ def _is_units_row(cells, width, comma_ok):
 
 
 def _parse_header(cells, src, lineno):
-    names, units = [], {}
+    """Column names and units of a header line (linear in the number of columns)."""
+    names, units, seen = [], {}, set()
     for j, cell in enumerate(cells):
         m = _BRACKET.match(cell)
         name = m.group(1).strip() if m else cell
         if not name:
             raise InputError(f"header cell {j + 1} is empty; every column needs a name",
                              source=src, row=lineno)
-        if name in names:
+        if name in seen:
             raise InputError(f"header names column '{name}' twice", source=src, column=name, row=lineno)
         names.append(name)
+        seen.add(name)
         if m and m.group(2).strip():
             units[name] = m.group(2).strip()
     return names, units
