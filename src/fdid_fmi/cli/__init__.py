@@ -31,8 +31,15 @@ BUG_REPORT = ("this is a bug in fdid-fmi; please report it to the fdid-fmi maint
               "with --debug")
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line error (no usage block): ``fdid CMD: error: ... (see --help)``."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser():
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="fdid", description="Feed-drive digital twins from CNC servo traces, as FMI FMUs.")
     from .. import __version__
     parser.add_argument("--version", action="version", version=f"fdid-fmi {__version__}")

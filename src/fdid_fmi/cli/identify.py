@@ -103,18 +103,18 @@ def _pair(text, name):
     try:
         hz, zeta = (float(v) for v in text.split(":"))
     except ValueError:
-        raise InputError(f"'{text}' is not HZ:ZETA (two numbers)", column=name) from None
+        raise InputError(f"'{text}' is not HZ:ZETA (two numbers)", source=name) from None
     if not (math.isfinite(hz) and math.isfinite(zeta) and hz > 0 and zeta > 0):
-        raise InputError(f"'{text}': expected HZ > 0 and ZETA > 0", column=name)
+        raise InputError(f"'{text}': expected HZ > 0 and ZETA > 0", source=name)
     return hz, zeta
 
 def _range(text, name):
     try:
         lo, hi = (float(v) for v in text.split(":"))
     except ValueError:
-        raise InputError(f"'{text}' is not LO:HI (two numbers)", column=name) from None
+        raise InputError(f"'{text}' is not LO:HI (two numbers)", source=name) from None
     if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-        raise InputError(f"'{text}': expected finite LO < HI", column=name)
+        raise InputError(f"'{text}': expected finite LO < HI", source=name)
     return lo, hi
 
 def _kv(items, name, conv, outputs, example):
@@ -122,13 +122,13 @@ def _kv(items, name, conv, outputs, example):
     out = {}
     for it in items:
         if "=" not in it:
-            raise InputError(f"'{it}' is not OUTPUT=VALUE (e.g. {example})", column=name)
+            raise InputError(f"'{it}' is not OUTPUT=VALUE (e.g. {example})", source=name)
         k, v = (x.strip() for x in it.split("=", 1))
         if k not in outputs:
             raise InputError(f"'{it}' names the output '{k}', which is not identified; the outputs "
-                             f"are {list(outputs)} (--outputs)", column=name)
+                             f"are {list(outputs)} (--outputs)", source=name)
         if k in out:
-            raise InputError(f"output '{k}' is given twice", column=name)
+            raise InputError(f"output '{k}' is given twice", source=name)
         out[k] = conv(v, it)
     return out
 
@@ -136,10 +136,10 @@ def _integrators(v, it):
     try:
         q = int(v)
     except ValueError:
-        raise InputError(f"'{it}': the number of integrators must be an integer", column="--integrators") from None
+        raise InputError(f"'{it}': the number of integrators must be an integer", source="--integrators") from None
     if not 0 <= q <= MAX_INTEGRATORS:
         raise InputError(f"'{it}': the number of integrators must be in 0 .. {MAX_INTEGRATORS}",
-                         column="--integrators")
+                         source="--integrators")
     return q
 
 def _dc_gain(v, it):
@@ -147,9 +147,9 @@ def _dc_gain(v, it):
         q, val = v.split(":")
         q, val = int(q), float(val)
     except ValueError:
-        raise InputError(f"'{it}' is not OUTPUT=Q:VALUE (e.g. position=1:1.0)", column="--dc-gain") from None
+        raise InputError(f"'{it}' is not OUTPUT=Q:VALUE (e.g. position=1:1.0)", source="--dc-gain") from None
     if not 0 <= q <= MAX_DC_ORDER or not math.isfinite(val):
-        raise InputError(f"'{it}': Q must be in 0 .. {MAX_DC_ORDER} and VALUE finite", column="--dc-gain")
+        raise InputError(f"'{it}': Q must be in 0 .. {MAX_DC_ORDER} and VALUE finite", source="--dc-gain")
     return q, val
 
 def check_arguments(args):
@@ -157,16 +157,16 @@ def check_arguments(args):
     n_real, n_complex = _orders(args)
     if n_real + 2 * n_complex > MAX_ORDER:
         raise InputError(f"{n_real} real poles and {n_complex} complex pairs make order "
-                         f"{n_real + 2 * n_complex}; at most {MAX_ORDER} per block", column="--n-real/--n-complex")
+                         f"{n_real + 2 * n_complex}; at most {MAX_ORDER} per block", source="--n-real/--n-complex")
     if n_real + n_complex == 0:
-        raise InputError("the search needs at least one pole", column="--n-real/--n-complex")
+        raise InputError("the search needs at least one pole", source="--n-real/--n-complex")
     outputs = tuple(o.strip() for o in args.outputs.split(",") if o.strip())
     for o in outputs:
         if o not in OUTPUT_KINDS:
             raise InputError(f"unknown output '{o}'; expected some of {', '.join(OUTPUT_KINDS)}",
-                             column="--outputs")
+                             source="--outputs")
     if not outputs or len(set(outputs)) != len(outputs):
-        raise InputError(f"'{args.outputs}': give each output once", column="--outputs")
+        raise InputError(f"'{args.outputs}': give each output once", source="--outputs")
     _kv(args.integrators, "--integrators", _integrators, outputs, "acceleration=2")
     _kv(args.dc_gain, "--dc-gain", _dc_gain, outputs, "position=1:1.0")
     for c in args.lock_complex:
@@ -180,6 +180,36 @@ def check_arguments(args):
             _range(r, "--" + opt.replace("_", "-"))
     if args.v_tilde_range:
         _range(args.v_tilde_range, "--v-tilde-range")
+
+MAX_POSITION_MM = 1e9          # 1000 km: anything larger is a unit/scale error
+MIN_SPAN_MM = 1e-9             # a commanded motion smaller than this is no excitation
+
+
+def check_data_range(trace, axes=None):
+    """Refuse position data whose scale no identification can use (one line naming the column).
+
+    Positions (roles cmd/act/tool) must stay within +-MAX_POSITION_MM, and every commanded
+    position must move by more than MIN_SPAN_MM; otherwise every candidate model's prediction
+    error over/underflows and the search has nothing to minimise."""
+    import numpy as np
+    for ax in axes or trace.axes:
+        for role in ("cmd", "act", "tool"):
+            if not trace.has(ax, role):
+                continue
+            name = trace.roles[ax][role]
+            x = np.asarray(trace.channels[name].data, float)
+            big = float(np.max(np.abs(x)))
+            if big > MAX_POSITION_MM:
+                raise InputError(f"positions reach {big:.3g} mm (more than {MAX_POSITION_MM:g} mm); "
+                                 f"check the unit and scale of this column (--unit)",
+                                 source=trace.source, column=name)
+            if role == "cmd":
+                span = float(np.max(x) - np.min(x))
+                if not span > MIN_SPAN_MM:
+                    raise InputError(f"the commanded position moves by only {span:.3g} mm; there is no "
+                                     f"motion to identify from (check the unit and scale)",
+                                     source=trace.source, column=name)
+
 
 def _orders(args):
     n_real = args.n_real if args.n_real is not None else (len(args.real_hz) if args.real_hz else 1)
@@ -217,7 +247,7 @@ def identify_from_args(trace, args, progress=True):
     if args.method == "pole-search":
         if n_real != 1 or n_complex != 1:
             raise InputError("the SISO pole search has one real pole and one complex pair; use --method mimo",
-                             column="--n-real/--n-complex")
+                             source="--n-real/--n-complex")
         models = [idf.identify_siso(pieces, ax, integral_action=not args.no_integral_action,
                                     velocity=args.velocity, ma_order=args.ma_order,
                                     friction=not args.no_friction, **common) for ax in axes]
@@ -276,6 +306,7 @@ def run(args):
     check_output(args.output, inputs=[args.trace], what="model file")
     check_arguments(args)
     trace = trace_from_args(args.trace, args)
+    check_data_range(trace, args.axis)
     model = identify_from_args(trace, args, progress=sys.stderr.isatty())
     model.save(args.output)
     for line in summary(model, trace):

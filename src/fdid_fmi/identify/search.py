@@ -38,7 +38,7 @@ class _Counter:
     """Wraps the objective: counts calls, keeps the best points seen, drives a progress bar."""
 
     def __init__(self, fun, progress, total, desc):
-        self.fun, self.nfev = fun, 0
+        self.fun, self.nfev, self.n_finite = fun, 0, 0
         self.bar = None
         if progress:
             from tqdm.auto import tqdm
@@ -50,7 +50,11 @@ class _Counter:
             self.bar.update(1)
             if self.nfev > self.bar.total:
                 self.bar.total = self.nfev
-        return self.fun(x)
+        v = float(self.fun(x))
+        if not np.isfinite(v):
+            return np.inf      # a NaN objective would stall the optimisers; see run_search
+        self.n_finite += 1
+        return v
 
     def close(self):
         if self.bar is not None:
@@ -85,6 +89,12 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
     Returns
     -------
     SearchResult
+
+    Raises
+    ------
+    InputError
+        When no candidate had a finite objective (NaN or inf everywhere: data far outside the
+        range the model's numbers can represent, e.g. positions scaled by 1e300 or 1e-300).
     """
     if method not in METHODS:
         from ..errors import InputError
@@ -131,5 +141,11 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
             pts.append(best)
     finally:
         cnt.close()
+    if cnt.n_finite == 0 or not np.isfinite(best[0]):
+        from ..errors import InputError
+        raise InputError(f"the pole search found no candidate with a finite prediction error "
+                         f"({cnt.nfev} evaluated, every one NaN or infinite); the data are probably "
+                         f"out of range (positions in mm, velocities in mm/s: check the units and "
+                         f"the scale of the trace)", column="pole search")
     return SearchResult(x=np.asarray(best[1]), fun=float(best[0]), minima=distinct_minima(pts, scale),
                         nfev=cnt.nfev, method=method)
