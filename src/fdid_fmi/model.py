@@ -315,11 +315,15 @@ class QuasiStaticModel:
     def from_dict(cls, d, source="<dict>"):
         _check_header(d, source, "quasi_static")
         try:
-            return cls(Ts=float(d["Ts"]), gains=d["gains"], cutoff_hz=float(d["cutoff_hz"]),
-                       order=int(d.get("order", 2)), method=d.get("method", "quasi-static"),
-                       metrics=d.get("metrics", {}), provenance=d.get("provenance", {}))
+            m = cls(Ts=float(d["Ts"]), gains=d["gains"], cutoff_hz=float(d["cutoff_hz"]),
+                    order=int(d.get("order", 2)), method=d.get("method", "quasi-static"),
+                    metrics=d.get("metrics", {}), provenance=d.get("provenance", {}))
         except KeyError as exc:
             raise InputError(f"model file lacks {exc}", source=source) from None
+        except (TypeError, ValueError, OverflowError) as exc:
+            raise InputError(f"is not a valid model: {exc}", source=source) from None
+        check_quasi_static(m, source)
+        return m
 
 
 def load_model(path):
@@ -483,7 +487,7 @@ def check_simulation_numbers(model):
     """
     lo, hi = TS_RANGE
     if not lo <= model.Ts <= hi:
-        raise InputError(f"sample time {model.Ts!r} s is outside the supported range {lo:g} .. {hi:g} s",
+        raise InputError(f"sample time {float(model.Ts)!r} s is outside the supported range {lo:g} .. {hi:g} s",
                          column="Ts")
     for arr, nm in ((model.A, "A"), (model.B, "B"), (model.C, "C"), (model.D, "D")):
         if arr.size and np.max(np.abs(arr)) > MAX_ABS:
@@ -518,3 +522,31 @@ def check_simulation_numbers(model):
                 raise InputError(f"the steady-state map {nm} of the model is not finite (A has an "
                                  f"eigenvalue too close to 1)", column="A")
 
+
+def check_quasi_static(model, source=None):
+    """Checks of a loaded quasi-static model: Ts in TS_RANGE, axis names, finite gains,
+    a positive finite cutoff below Nyquist, filter order 1..8, printable method."""
+    lo, hi = TS_RANGE
+    if not lo <= model.Ts <= hi:
+        raise InputError(f"sample time {float(model.Ts)!r} s is outside the supported range "
+                         f"{lo:g} .. {hi:g} s", source=source, column="Ts")
+    check_text(model.method, "method", column="method", source=source, max_len=200)
+    if not isinstance(model.gains, dict) or not model.gains:
+        raise InputError("gains must be a JSON object axis -> {K_vel, K_acc, K_jerk}", source=source,
+                         column="gains")
+    for ax, g in model.gains.items():
+        check_name(ax, "axis", source=source)
+        if not isinstance(g, dict):
+            raise InputError(f"gains of axis '{ax}' must be a JSON object", source=source, column=ax)
+        for k in ("K_vel", "K_acc", "K_jerk"):
+            v = g.get(k)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) \
+                    or abs(v) > MAX_ABS:
+                raise InputError(f"{k} must be a finite number, got {_short(v)}", source=source,
+                                 column=f"{ax}.{k}")
+    if not (np.isfinite(model.cutoff_hz) and 0 < model.cutoff_hz < 0.5 / model.Ts):
+        raise InputError(f"cutoff_hz must be in (0, {0.5 / model.Ts:g}) Hz, got {model.cutoff_hz!r}",
+                         source=source, column="cutoff_hz")
+    if not 1 <= model.order <= 8:
+        raise InputError(f"filter order must be in 1 .. 8, got {model.order}", source=source,
+                         column="order")
