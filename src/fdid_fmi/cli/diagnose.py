@@ -13,6 +13,8 @@ import sys
 from ..errors import InputError
 from ..model import DriveModel, load_model
 from ..outputs import atomic_write, check_output, same_file
+
+MIN_SAMPLES = 200     # samples of each trace (or half) the diagnosis fits or judges on
 from .mapping import add_trace_arguments, trace_from_args
 
 
@@ -91,6 +93,12 @@ def run(args):
                          source=args.model)
     train = _ranged(trace_from_args(args.train, args), args.train_range, "--train-range")
     val = _ranged(trace_from_args(args.val, args), args.val_range, "--val-range") if args.val else None
+    for tr, what, need in ((train, "--train", MIN_SAMPLES * (1 if val is not None else 2)),
+                           (val, "--val", MIN_SAMPLES)):
+        if tr is not None and tr.n < need:
+            raise InputError(f"has {tr.n} samples; diagnosis needs at least {need} "
+                             f"({'fit and held-out halves of ' if need > MIN_SAMPLES else ''}"
+                             f"{MIN_SAMPLES} samples each)", source=tr.source, column=what)
     dets = [d.strip() for d in args.detectors.split(",")] if args.detectors else None
     diag = diagnose(model, train, val, detectors=dets, min_gain=args.min_gain, max_loss=args.max_loss,
                     max_steps=args.max_steps, maxiter=args.maxiter, exclude=args.exclude,
