@@ -1,0 +1,378 @@
+"""Fleet manifests: which axes to identify, from which trace files, how (TOML or CSV).
+
+TOML (read with the standard library's ``tomllib``)::
+
+    [defaults]                       # optional, applied to every entry (an entry's keys win)
+    map = { t = "t_s" }
+    options = { diagnose = false }
+
+    [thresholds]                     # optional, change-watch thresholds (see fleet.compare)
+    error_ratio = 2.0
+
+    [[entry]]
+    machine = "m01"
+    axis = "x"
+    traces = ["m01_x.csv"]           # first file: identification; the others: held out
+    map = { "x.cmd" = "x_cmd_mm", "x.act" = "x_mm", "x.tool" = "x_tool_mm" }
+    units = { }                      # column -> unit, when the names do not say it
+    options = { method = "pole-search", seed = 0, diagnose = true }
+
+CSV (one entry per row; a header line naming the columns)::
+
+    machine,axis,traces,map,units,options
+    m01,x,m01_x.csv;m01_x_val.csv,t=t_s x.cmd=x_cmd_mm x.act=x_mm,,diagnose=false seed=0
+
+``traces`` are separated by ``;``; ``map``/``units``/``options`` are space-separated
+``KEY=VALUE`` tokens. Paths are relative to the manifest's folder.
+
+Options
+-------
+Identification options are those of ``fdid identify`` (``method``, ``search``, ``seed``,
+``maxiter``, ``v_tilde``, ``no_integral_action``, ``n_real``... : the option name with ``_`` for
+``-``; ``true`` for a flag; a list for a repeatable option) and ``range`` (data ranges of the
+identification trace). They are checked with the ``fdid identify`` parser itself, so an entry is
+identified exactly as ``fdid identify`` would. Fleet options:
+
+``diagnose``   (bool, default true) run ``fdid diagnose`` on the identified model (the slowest
+               stage: ~2-3x the identification; switch it off for speed);
+``detectors``  (list of str) diagnosis detector families (default all);
+``fmi``        (2 or 3, default 2) FMI version of the exported FMU.
+
+A manifest entry that cannot be used (missing machine/axis, an unknown option, a bad value)
+becomes an :class:`EntrySpec` with ``error`` set: the fleet reports it with that one line and
+runs the others.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import hashlib
+import io
+import json
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import InputError
+
+FLEET_OPTIONS = ("diagnose", "detectors", "fmi")
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+_ENTRY_KEYS = {"machine", "axis", "traces", "trace", "map", "units", "options"}
+
+__all__ = ["EntrySpec", "Manifest", "load_manifest", "parse_manifest_text", "entry_hash",
+           "identify_args", "FLEET_OPTIONS"]
+
+
+@dataclass(frozen=True)
+class EntrySpec:
+    """One unit of work: one axis of one machine.
+
+    Attributes
+    ----------
+    machine, axis : str
+    traces : tuple of str     absolute paths; the first identifies, the others are held out
+    mapping : dict            reader mapping ``{"t": col, "x.cmd": col, ...}`` (``--map``)
+    units : dict              ``{col: unit}`` (``--unit``)
+    identify : tuple of str   ``fdid identify`` option tokens (``("--seed", "0", ...)``)
+    diagnose : bool
+    detectors : tuple of str or None
+    fmi : int                 2 or 3
+    row : int                 position in the manifest (1-based entry number / CSV line)
+    error : str or None       why the entry cannot run (manifest problem), one line
+    """
+
+    machine: str
+    axis: str
+    traces: tuple = ()
+    mapping: dict = field(default_factory=dict)
+    units: dict = field(default_factory=dict)
+    identify: tuple = ()
+    diagnose: bool = True
+    detectors: tuple | None = None
+    fmi: int = 2
+    row: int = 0
+    error: str | None = None
+
+    @property
+    def key(self):
+        """``machine/axis``: the entry's name in reports and in the previous fleet result."""
+        return f"{self.machine}/{self.axis}"
+
+    @property
+    def dirname(self):
+        """Folder of the entry's outputs under ``OUT/entries/``."""
+        return f"{self.machine}__{self.axis}"
+
+    def to_dict(self):
+        return {"machine": self.machine, "axis": self.axis, "traces": list(self.traces),
+                "mapping": dict(self.mapping), "units": dict(self.units), "identify": list(self.identify),
+                "diagnose": self.diagnose, "detectors": list(self.detectors) if self.detectors else None,
+                "fmi": self.fmi, "row": self.row, "error": self.error}
+
+
+@dataclass
+class Manifest:
+    """A parsed manifest: entries (in file order), change thresholds, where it came from."""
+
+    entries: list
+    thresholds: dict = field(default_factory=dict)
+    source: str = "<manifest>"
+
+
+# ----------------------------------------------------------------------------- option checking
+class _RaisingParser(argparse.ArgumentParser):
+    """An ArgumentParser that raises InputError instead of printing usage and exiting."""
+
+    def error(self, message):
+        raise InputError(message, column="options")
+
+    def exit(self, status=0, message=None):  # --help etc. never reach here from a manifest
+        raise InputError((message or "bad options").strip(), column="options")
+
+
+def _identify_parser():
+    from ..cli import identify as cli_identify
+    root = _RaisingParser(prog="fdid", add_help=False)
+    sub = root.add_subparsers(dest="command")
+    cli_identify.register(sub)
+    return root
+
+
+def identify_args(trace_path, spec: EntrySpec):
+    """The ``argparse`` namespace ``fdid identify TRACE <options>`` would build for ``spec``.
+
+    Raises
+    ------
+    InputError  an unknown option or a bad value (argparse's message, one line)
+    """
+    tokens = ["identify", str(trace_path), *spec.identify]
+    if spec.mapping:
+        tokens += ["--map", *[f"{k}={v}" for k, v in spec.mapping.items()]]
+    if spec.units:
+        tokens += ["--unit", *[f"{k}={v}" for k, v in spec.units.items()]]
+    args = _identify_parser().parse_args(tokens)
+    return args
+
+
+def _option_tokens(options: dict, where):
+    """``fdid identify`` tokens from an options table (fleet options removed)."""
+    tokens = []
+    for k, v in options.items():
+        if k in FLEET_OPTIONS:
+            continue
+        flag = "--" + str(k).replace("_", "-")
+        values = v if isinstance(v, (list, tuple)) else [v]
+        for item in values:
+            if isinstance(item, bool):
+                if item:
+                    tokens.append(flag)
+                elif k not in ("no_friction", "no_integral_action", "coupled"):
+                    raise InputError(f"option '{k}' = false is not understood (leave it out)",
+                                     source=where, column=k)
+            elif isinstance(item, (int, float, str)):
+                tokens += [flag, str(item)]
+            else:
+                raise InputError(f"option '{k}' has an unsupported value {item!r}", source=where, column=k)
+    return tuple(tokens)
+
+
+def _fleet_options(options, where):
+    diagnose = options.get("diagnose", True)
+    if not isinstance(diagnose, bool):
+        raise InputError(f"'diagnose' must be true or false, got {diagnose!r}", source=where, column="diagnose")
+    det = options.get("detectors")
+    if det is not None:
+        if isinstance(det, str):
+            det = [d.strip() for d in det.split(",") if d.strip()]
+        from ..diagnose.loop import DETECTORS
+        bad = [d for d in det if d not in DETECTORS]
+        if bad:
+            raise InputError(f"unknown detector(s) {bad}; expected some of {sorted(DETECTORS)}",
+                             source=where, column="detectors")
+        det = tuple(det)
+    fmi = options.get("fmi", 2)
+    if str(fmi) not in ("2", "3"):
+        raise InputError(f"'fmi' must be 2 or 3, got {fmi!r}", source=where, column="fmi")
+    return diagnose, det, int(fmi)
+
+
+def _build_entry(raw: dict, defaults: dict, base: Path, row: int, where: str) -> EntrySpec:
+    """One EntrySpec from a raw table; problems become ``error`` (never raised)."""
+    machine = str(raw.get("machine", "") or "").strip()
+    axis = str(raw.get("axis", "") or "").strip()
+    try:
+        for name, value in (("machine", machine), ("axis", axis)):
+            if not value:
+                raise InputError(f"entry {row} has no '{name}'", source=where, column=name)
+            if not _NAME.match(value):
+                raise InputError(f"'{value}' is not a usable {name} name (letters, digits, _ . -)",
+                                 source=where, column=name)
+        unknown = sorted(set(raw) - _ENTRY_KEYS)
+        if unknown:
+            raise InputError(f"unknown key(s) {unknown} in entry {row}; expected {sorted(_ENTRY_KEYS)}",
+                             source=where, column=unknown[0])
+        traces = raw.get("traces", raw.get("trace"))
+        if isinstance(traces, str):
+            traces = [t.strip() for t in traces.split(";") if t.strip()]
+        if not traces or not all(isinstance(t, str) for t in traces):
+            raise InputError(f"entry {row} needs 'traces' (a list of trace files)", source=where,
+                             column="traces")
+        paths = tuple(str((base / t).resolve()) if not Path(t).is_absolute() else t for t in traces)
+        mapping = {**defaults.get("map", {}), **(raw.get("map") or {})}
+        units = {**defaults.get("units", {}), **(raw.get("units") or {})}
+        options = {**defaults.get("options", {}), **(raw.get("options") or {})}
+        for name, tbl in (("map", mapping), ("units", units), ("options", options)):
+            if not isinstance(tbl, dict):
+                raise InputError(f"'{name}' must be a table of KEY = VALUE", source=where, column=name)
+        mapping = {str(k): str(v) for k, v in mapping.items()}
+        units = {str(k): str(v) for k, v in units.items()}
+        diagnose, det, fmi = _fleet_options(options, where)
+        spec = EntrySpec(machine, axis, paths, mapping, units, _option_tokens(options, where), diagnose,
+                         det, fmi, row)
+        # the fdid identify parser checks option names and values (not the files)
+        from ..cli.mapping import parse_mapping, parse_units
+        try:
+            args = identify_args(paths[0], spec)
+        except InputError as exc:
+            raise InputError(f"entry {row}: {exc.args[0].split(': ', 1)[-1]}", source=where,
+                             column="options") from None
+        parse_mapping(args.map)
+        parse_units(args.unit)
+        return spec
+    except InputError as exc:
+        return EntrySpec(machine or f"entry{row}", axis or "?", row=row, error=_one_line(exc))
+
+
+def _one_line(exc):
+    return " ".join(str(exc).split())
+
+
+def _kv_tokens(text, where, column):
+    out = {}
+    for tok in (text or "").split():
+        if "=" not in tok:
+            raise InputError(f"'{tok}' is not KEY=VALUE", source=where, column=column)
+        k, v = tok.split("=", 1)
+        out[k.strip()] = v.strip()
+    return out
+
+
+def _csv_value(v):
+    low = v.lower()
+    if low in ("true", "yes"):
+        return True
+    if low in ("false", "no"):
+        return False
+    return v
+
+
+def parse_manifest_text(text, fmt, base=".", source="<manifest>") -> Manifest:
+    """Parse manifest text (``fmt`` = ``toml`` or ``csv``); trace paths resolve against ``base``.
+
+    Raises
+    ------
+    InputError  the file as a whole cannot be read (bad TOML/CSV syntax, no entries, two entries
+                for the same machine/axis); problems of one entry go to its ``error`` instead.
+    """
+    base = Path(base)
+    raws, defaults, thresholds = [], {}, {}
+    if fmt == "toml":
+        try:
+            doc = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise InputError(f"not valid TOML ({exc})", source=source) from None
+        unknown = sorted(set(doc) - {"entry", "defaults", "thresholds"})
+        if unknown:
+            raise InputError(f"unknown table(s) {unknown}; expected [[entry]], [defaults], [thresholds]",
+                             source=source)
+        raws = doc.get("entry", [])
+        if not isinstance(raws, list):
+            raise InputError("'entry' must be an array of tables ([[entry]])", source=source)
+        defaults = doc.get("defaults", {})
+        thresholds = doc.get("thresholds", {})
+        rows = list(range(1, len(raws) + 1))
+    elif fmt == "csv":
+        reader = csv.DictReader(io.StringIO(text))
+        if not reader.fieldnames or not {"machine", "axis"} <= {f.strip() for f in reader.fieldnames}:
+            raise InputError("the CSV manifest needs a header with at least machine, axis, traces",
+                             source=source)
+        rows = []
+        for rec in reader:
+            rec = {(k or "").strip(): (v or "").strip() for k, v in rec.items()}
+            if not any(rec.values()):
+                continue
+            rows.append(reader.line_num)
+            raw = {k: v for k, v in rec.items() if k in ("machine", "axis", "traces", "trace") and v}
+            extra = sorted(k for k, v in rec.items() if k not in _ENTRY_KEYS and v)
+            if extra:
+                raw[extra[0]] = rec[extra[0]]     # reported as an unknown key of this entry
+            try:
+                raw["map"] = _kv_tokens(rec.get("map"), source, "map")
+                raw["units"] = _kv_tokens(rec.get("units"), source, "units")
+                raw["options"] = {k: _csv_value(v) for k, v in _kv_tokens(rec.get("options"), source,
+                                                                          "options").items()}
+            except InputError as exc:
+                raw = {"machine": rec.get("machine"), "axis": rec.get("axis"), "_bad": str(exc)}
+            raws.append(raw)
+    else:
+        raise InputError(f"manifest format must be toml or csv, got {fmt!r}", source=source)
+    if not raws:
+        raise InputError("the manifest lists no entries", source=source)
+    entries = []
+    for row, raw in zip(rows, raws):
+        if not isinstance(raw, dict):
+            raise InputError(f"entry {row} is not a table", source=source)
+        if "_bad" in raw:
+            entries.append(EntrySpec(str(raw.get("machine") or f"entry{row}"), str(raw.get("axis") or "?"),
+                                     row=row, error=" ".join(raw["_bad"].split())))
+            continue
+        entries.append(_build_entry(raw, defaults, base, row, source))
+    seen = {}
+    for e in entries:
+        if e.key in seen and e.error is None:
+            raise InputError(f"{e.key} is listed twice (entries {seen[e.key]} and {e.row})", source=source)
+        seen.setdefault(e.key, e.row)
+    return Manifest(entries, dict(thresholds), source)
+
+
+def load_manifest(path) -> Manifest:
+    """Read a ``.toml`` or ``.csv`` manifest file (see the module docstring)."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError("manifest file not found", source=str(p))
+    fmt = {".toml": "toml", ".csv": "csv"}.get(p.suffix.lower())
+    if fmt is None:
+        raise InputError(f"a manifest is .toml or .csv, not '{p.suffix}'", source=str(p))
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read ({exc})", source=str(p)) from None
+    return parse_manifest_text(text, fmt, base=p.parent, source=str(p))
+
+
+# ----------------------------------------------------------------------------- content hash
+def file_digest(path):
+    """sha256 of a file's bytes, or ``missing:<path>`` when it cannot be read (so that the hash
+    changes once the file appears)."""
+    h = hashlib.sha256()
+    try:
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+    except OSError:
+        return f"missing:{path}"
+    return h.hexdigest()
+
+
+def entry_hash(spec: EntrySpec, version: str) -> str:
+    """Content hash of a unit of work: trace file bytes, options and software version.
+
+    Equal hashes mean equal inputs, so a finished result with the same hash can be reused.
+    """
+    d = spec.to_dict()
+    d.pop("row")
+    d["traces"] = [file_digest(p) for p in spec.traces]
+    d["trace_names"] = [Path(p).name for p in spec.traces]
+    d["version"] = version
+    return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()

@@ -1,0 +1,95 @@
+"""The fleet report: one JSON table (``fleet.json``) and one self-contained HTML page (``fleet.html``).
+
+The HTML opens with what a maintenance engineer needs in the morning: how many axes were done,
+which failed and why (one line each), which changed since the previous run, named (friction,
+backlash, resonance, dynamics) with the evidence and the thresholds; then the table of every axis
+(FMU discrepancy to the measurement, FMU vs reference simulator, model error, friction level,
+effects diagnosis added, wall time).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import asdict
+from pathlib import Path
+
+from ..outputs import atomic_write
+
+__all__ = ["summary_lines", "write_fleet_report", "fleet_report_html"]
+
+
+def summary_lines(fr):
+    """Plain-text summary of a :class:`~.runner.FleetResult`."""
+    n = len(fr.entries)
+    ok = sum(e.ok for e in fr.entries)
+    lines = [f"fleet: {n} axes, {ok} done, {len(fr.failed)} failed; {len(fr.executed)} run now, "
+             f"{len(fr.skipped)} unchanged since the last run (reused); {fr.wall_s:.1f} s on {fr.executor}"]
+    if fr.previous:
+        ch = fr.changed
+        lines.append(f"compared with {fr.previous}: {len(ch)} axis/axes changed beyond the thresholds")
+        for e in ch:
+            lines.append(f"  CHANGED {e.key}: {e.change.summary}")
+            for ev in e.change.evidence:
+                lines.append(f"      - {ev}")
+        new = [e.key for e in fr.entries if e.ok and e.change is None]
+        if new:
+            lines.append(f"  no previous model for: {', '.join(new)}")
+    for e in fr.failed:
+        lines.append(f"  FAILED {e.key}: {e.error}")
+    bad = [e.key for e in fr.entries if e.ok and any(v.problems for v in e.validation)]
+    if bad:
+        lines.append(f"  FMU validation problems: {', '.join(bad)}")
+    return lines
+
+
+def _fmt(v):
+    if v is None:
+        return "–"
+    if isinstance(v, float):
+        return f"{v:.3g}"
+    if isinstance(v, list):
+        return ", ".join(map(str, v)) or "–"
+    return str(v)
+
+
+def fleet_report_html(fr):
+    """The HTML page (a :class:`fdid_fmi.report.Report`)."""
+    from ..report import Report
+    from .runner import table_rows
+    rep = Report(f"Fleet report: {Path(fr.manifest).name}",
+                 meta={"executor": fr.executor, "started (UTC)": fr.started_utc, "wall time [s]": f"{fr.wall_s:.1f}",
+                       "fdid-fmi": fr.version, "previous": fr.previous or "none"})
+    rep.add_text("\n\n".join(summary_lines(fr)), heading="Summary")
+    if fr.previous:
+        rows = [{"axis": e.key, "change": e.change.summary, "evidence": " | ".join(e.change.evidence)}
+                for e in fr.changed]
+        if rows:
+            rep.add_table("changed", rows, caption="Axes whose plant changed since the previous run, with the "
+                          "evidence (thresholds below).")
+        else:
+            rep.add_text("No axis changed beyond the thresholds.", heading="Changed axes")
+        rep.add_table("thresholds", [{"threshold": k, "value": v} for k, v in fr.thresholds.to_dict().items()],
+                      caption="Change thresholds (fdid_fmi.fleet.compare.Thresholds; the manifest's "
+                              "[thresholds] table sets them).")
+    if fr.failed:
+        rep.add_table("failed", [{"axis": e.key, "reason": e.error} for e in fr.failed],
+                      caption="Entries that did not complete (the others did).")
+    rows = table_rows(fr)
+    rep.add_table("axes", [{k: _fmt(v) for k, v in r.items()} for r in rows],
+                  caption="Every axis: FMU tracking-error discrepancy to the measurement (µm, worst held-out "
+                          "trace), FMU vs reference simulator (mm), model free-run position error (µm), "
+                          "friction step-response peak (µm), effects diagnosis kept, wall time (s).")
+    tm = [e.timings for e in fr.entries if e.ok and e.key in fr.executed and not e.reused_build]
+    if tm:
+        stages = ("identify_s", "export_s", "validate_s", "diagnose_s", "compare_s", "total_s")
+        rep.add_table("timings", [{"stage": s, "mean [s]": sum(getattr(t, s) for t in tm) / len(tm),
+                                   "sum [s]": sum(getattr(t, s) for t in tm)} for s in stages],
+                      caption=f"Per-entry wall time over the {len(tm)} entries run now.")
+    return rep
+
+
+def write_fleet_report(fr, out):
+    """Write ``out/fleet.json`` and ``out/fleet.html`` atomically; returns their paths."""
+    out = Path(out)
+    j = atomic_write(out / "fleet.json", json.dumps(fr.to_dict(), indent=1, default=float))
+    h = atomic_write(out / "fleet.html", fleet_report_html(fr).html())
+    return j, h

@@ -1,0 +1,413 @@
+"""One fleet entry, start to finish: identify -> export -> validate -> diagnose -> compare.
+
+:func:`run_entry` is what a worker (local process or Dask worker) executes. It takes a
+:class:`WorkItem` (plain, picklable), writes the entry's outputs into its own folder, each file
+atomically (temporary file in the same folder, then ``os.replace``; :mod:`fdid_fmi.outputs`), and
+returns an :class:`EntryResult`. ``entry.json`` is written last: its presence with the entry's
+input hash is what marks the work as done, so a worker killed half-way leaves no result that a
+rerun could mistake for a finished one.
+
+Output folder ``OUT/entries/<machine>__<axis>/``:
+
+``model.json``            the identified model (``fdid identify`` with the entry's options)
+``<machine>_<axis>.fmu``  FMI co-simulation FMU (``fdid export``)
+``validation.json``       the FMU through fmpy vs reference simulator and measurement, per trace
+``diagnosis.json``        effects found/added and the error before/after (when ``diagnose``)
+``model_diagnosed.json``  the model with the kept effects (when diagnosis kept any)
+``entry.html``            the entry's report
+``entry.json``            :class:`EntryResult`
+"""
+from __future__ import annotations
+
+import json
+import os
+import socket
+import time
+import traceback
+from dataclasses import asdict, dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FdidError, InputError
+from .compare import ChangeReport, ModelSignature, Thresholds, compare_models, model_signature
+from .manifest import EntrySpec, identify_args
+
+__all__ = ["StageTimes", "ValidationFigures", "PreviousModel", "WorkItem", "EntryResult", "run_entry",
+           "validate_entry_fmu", "ENTRY_FILE"]
+
+ENTRY_FILE = "entry.json"
+
+
+@dataclass
+class StageTimes:
+    """Wall time of each stage of one entry [s] (0 for a stage not run or reused)."""
+
+    read_s: float = 0.0
+    identify_s: float = 0.0
+    export_s: float = 0.0
+    validate_s: float = 0.0
+    diagnose_s: float = 0.0
+    compare_s: float = 0.0
+    total_s: float = 0.0
+
+
+@dataclass
+class ValidationFigures:
+    """The FMU on one trace: discrepancy to the measurement and agreement with the reference."""
+
+    trace: str
+    rms_um: float
+    max_um: float
+    max_abs_diff_reference_mm: float
+    problems: list = field(default_factory=list)
+
+    @property
+    def ok(self):
+        return not self.problems
+
+
+@dataclass(frozen=True)
+class PreviousModel:
+    """The last model of the same axis (from a previous fleet result)."""
+
+    model_path: str
+    signature: dict
+    errors_um: dict
+    source: str
+
+
+@dataclass(frozen=True)
+class WorkItem:
+    """Everything :func:`run_entry` needs (picklable; no open files, no clients)."""
+
+    spec: EntrySpec
+    entry_dir: str
+    input_hash: str
+    version: str
+    previous: PreviousModel | None = None
+    thresholds: dict = field(default_factory=dict)
+    compare_key: str | None = None
+
+
+@dataclass
+class EntryResult:
+    """Outcome of one entry.
+
+    Attributes
+    ----------
+    machine, axis : str
+    status : ``ok`` or ``failed``
+    input_hash : str          content hash of traces + options + version (see manifest.entry_hash)
+    error : str or None       the one-line reason of a failure
+    deterministic : bool      the failure follows from the inputs (bad file, option, data): a rerun
+                              with the same inputs skips it; other failures are retried
+    outputs : dict            name -> file path relative to the entry folder
+    timings : StageTimes
+    signature : ModelSignature or None
+    errors_um : dict          channel (``motor``, ``tool``) -> RMS of the model's free-run position
+                              error on the entry's traces [µm]
+    validation : list of ValidationFigures
+    effects_added : list of dict   what diagnosis kept
+    change : ChangeReport or None  comparison with the previous model of the axis
+    compare_key : str or None
+    worker : str              host:pid that did the work
+    finished_utc : str
+    reused_build : bool       identification, export, validation and diagnosis were reused from a
+                              finished run with the same inputs (only the comparison was redone)
+    """
+
+    machine: str
+    axis: str
+    status: str
+    input_hash: str
+    error: str | None = None
+    deterministic: bool = False
+    outputs: dict = field(default_factory=dict)
+    timings: StageTimes = field(default_factory=StageTimes)
+    signature: ModelSignature | None = None
+    errors_um: dict = field(default_factory=dict)
+    validation: list = field(default_factory=list)
+    effects_added: list = field(default_factory=list)
+    change: ChangeReport | None = None
+    compare_key: str | None = None
+    worker: str = ""
+    finished_utc: str = ""
+    reused_build: bool = False
+
+    @property
+    def key(self):
+        return f"{self.machine}/{self.axis}"
+
+    @property
+    def ok(self):
+        return self.status == "ok"
+
+    def to_dict(self):
+        from ..model import jsonable
+        return jsonable(asdict(self))
+
+    @classmethod
+    def from_dict(cls, d):
+        d = dict(d)
+        d["timings"] = StageTimes(**d.get("timings", {}))
+        d["signature"] = ModelSignature(**d["signature"]) if d.get("signature") else None
+        d["validation"] = [ValidationFigures(**v) for v in d.get("validation", [])]
+        d["change"] = ChangeReport.from_dict(d.get("change"))
+        return cls(**d)
+
+
+# ----------------------------------------------------------------------------- stages
+def validate_entry_fmu(fmu_path, trace, model, axis) -> ValidationFigures:
+    """THE one call into FMU validation (``fdid validate``'s engine); adapt here if its API changes.
+
+    Returns the FMU's tracking-error discrepancy to the measurement on ``axis`` [µm], its largest
+    difference from the reference simulator [mm] and the problems found.
+    """
+    from ..fmu.validate import validate_fmu
+    res = validate_fmu(fmu_path, trace, model=model)
+    d = res.axes.get(axis, {})
+    return ValidationFigures(trace=Path(str(trace.source)).name, rms_um=float(d.get("rms_um", float("nan"))),
+                             max_um=float(d.get("max_um", float("nan"))),
+                             max_abs_diff_reference_mm=float(res.max_abs_diff_reference_mm),
+                             problems=list(res.problems))
+
+
+def channel_errors(model, traces, axis):
+    """RMS free-run position error [µm] of ``model`` over ``traces`` per measured channel, and the
+    residuals (measured - predicted, mm) on the first trace.
+
+    Channels: ``motor`` (the encoder, ``act``) and ``tool`` (the ``tool`` channel, when the
+    traces have one and the model predicts the motor side; a model fitted on the tool side has
+    only ``tool``).
+    """
+    from ..simulate import simulate
+    side = model.position_side(axis)
+    acc, residuals = {}, {}
+    for k, tr in enumerate(traces):
+        pos = simulate(model, tr).axes[axis]["position"]
+        chans = {"tool": "tool"} if side == "tool" else {"motor": "act", "tool": "tool"}
+        for ch, role in chans.items():
+            if not tr.has(axis, role):
+                continue
+            r = np.asarray(tr.get(axis, role), float) - pos
+            s, n = acc.get(ch, (0.0, 0))
+            acc[ch] = (s + float(r @ r), n + r.size)
+            if k == 0:
+                residuals[ch] = (r, np.asarray(tr.cmd(axis), float), float(tr.Ts))
+    errors = {ch: float(np.sqrt(s / n) * 1e3) for ch, (s, n) in acc.items()}
+    return errors, residuals
+
+
+def _read_traces(spec: EntrySpec):
+    from ..cli.mapping import trace_from_args
+    traces = []
+    for p in spec.traces:
+        args = identify_args(p, spec)
+        traces.append(trace_from_args(p, args))
+    return traces
+
+
+def _identify(spec, trace):
+    from ..cli.identify import identify_from_args
+    args = identify_args(spec.traces[0], spec)
+    if not args.axis:
+        args.axis = [spec.axis]
+    if spec.axis not in trace.axes or not (trace.has(spec.axis, "cmd") and trace.has(spec.axis, "act")):
+        raise InputError(f"the trace has no axis '{spec.axis}' with 'cmd' and 'act' channels "
+                         f"(axes found: {trace.axes}); check the entry's map", source=spec.traces[0])
+    return identify_from_args(trace, args, progress=False)
+
+
+def _save_json(path, data):
+    from ..outputs import atomic_write
+    atomic_write(path, json.dumps(data, indent=1, default=float))
+
+
+def _save_model(model, path):
+    from ..outputs import atomic_path
+    with atomic_path(path) as tmp:
+        model.save(tmp)
+
+
+def _existing(entry_dir: Path, input_hash):
+    """A finished, successful result with the same inputs whose output files are all present."""
+    p = entry_dir / ENTRY_FILE
+    if not p.is_file():
+        return None
+    try:
+        res = EntryResult.from_dict(json.loads(p.read_text()))
+    except (ValueError, TypeError, KeyError):
+        return None
+    if res.input_hash != input_hash or not res.ok:
+        return None
+    if not all((entry_dir / f).is_file() for f in res.outputs.values()):
+        return None
+    return res
+
+
+def run_entry(item: WorkItem) -> EntryResult:
+    """Run one fleet entry (see the module docstring); never raises for a failing entry.
+
+    Returns
+    -------
+    EntryResult  with ``status`` ``ok``, or ``failed`` and a one-line ``error``
+    """
+    from ..model import load_model
+    spec = item.spec
+    t_start = time.perf_counter()
+    res = EntryResult(spec.machine, spec.axis, "failed", item.input_hash,
+                      worker=f"{socket.gethostname()}:{os.getpid()}")
+    out = Path(item.entry_dir)
+    try:
+        if spec.error:
+            raise InputError(spec.error)
+        out.mkdir(parents=True, exist_ok=True)
+        tm = StageTimes()
+        t0 = time.perf_counter()
+        traces = _read_traces(spec)
+        tm.read_s = time.perf_counter() - t0
+        old = _existing(out, item.input_hash)
+        if old is not None:
+            res = old
+            res.reused_build = True
+            res.worker = f"{socket.gethostname()}:{os.getpid()}"
+            tm = res.timings
+            model = load_model(out / res.outputs["model"])
+        else:
+            model = _build(spec, traces, out, res, tm)
+        if item.previous is not None:
+            t0 = time.perf_counter()
+            res.change = _compare(item, model, traces)
+            tm.compare_s = time.perf_counter() - t0
+            res.compare_key = item.compare_key
+        else:
+            res.change, res.compare_key = None, None
+        res.status, res.error, res.deterministic = "ok", None, False
+        tm.total_s = time.perf_counter() - t_start if old is None else tm.total_s + tm.compare_s
+        res.timings = tm
+    except FdidError as exc:
+        res.status, res.error, res.deterministic = "failed", _one_line(str(exc)), True
+    except Exception as exc:  # noqa: BLE001 - one failing entry must not stop the fleet
+        last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
+        where = f" ({Path(last.filename).name}:{last.lineno})" if last else ""
+        res.status, res.error, res.deterministic = "failed", _one_line(f"{type(exc).__name__}: {exc}{where}"), False
+    res.finished_utc = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    if res.status != "ok":
+        res.timings.total_s = time.perf_counter() - t_start
+    try:
+        if out.is_dir() or res.status == "ok":
+            if res.status == "ok":
+                _entry_report(res, out)
+            _save_json(out / ENTRY_FILE, res.to_dict())
+    except FdidError as exc:       # cannot write the result: report it, the rerun retries
+        res.status, res.error, res.deterministic = "failed", _one_line(str(exc)), False
+    return res
+
+
+def _one_line(text):
+    return " ".join(str(text).split())[:500]
+
+
+def _build(spec, traces, out, res, tm):
+    """Identify, export, validate and (optionally) diagnose; fills ``res``; returns the model."""
+    from ..fmu import export_fmu
+    from ..model import DriveModel
+    train = traces[0]
+    held = traces[1:] or traces[:1]
+    t0 = time.perf_counter()
+    model = _identify(spec, train)
+    if not isinstance(model, DriveModel):
+        raise InputError("the fleet needs a state-space model (method pole-search or mimo), "
+                         "not a quasi-static one", column="method")
+    _save_model(model, out / "model.json")
+    tm.identify_s = time.perf_counter() - t0
+    res.outputs = {"model": "model.json"}
+
+    t0 = time.perf_counter()
+    fmu = export_fmu(model, out / f"{spec.machine}_{spec.axis}.fmu".replace("-", "_"), fmi_version=spec.fmi)
+    tm.export_s = time.perf_counter() - t0
+    res.outputs["fmu"] = fmu.name
+
+    t0 = time.perf_counter()
+    res.validation = [validate_entry_fmu(fmu, tr, model, spec.axis) for tr in held]
+    _save_json(out / "validation.json", [asdict(v) for v in res.validation])
+    tm.validate_s = time.perf_counter() - t0
+    res.outputs["validation"] = "validation.json"
+
+    final = model
+    if spec.diagnose:
+        from ..diagnose import diagnose
+        t0 = time.perf_counter()
+        diag = diagnose(model, train, traces[1] if len(traces) > 1 else None,
+                        detectors=list(spec.detectors) if spec.detectors else None)
+        tm.diagnose_s = time.perf_counter() - t0
+        _save_json(out / "diagnosis.json", diag.to_json())
+        res.outputs["diagnosis"] = "diagnosis.json"
+        res.effects_added = [dict(e) for e in diag.effects_added]
+        if diag.effects_added:
+            final = diag.final
+            _save_model(final, out / "model_diagnosed.json")
+            res.outputs["model_diagnosed"] = "model_diagnosed.json"
+    res.signature = model_signature(model, spec.axis)
+    res.signature.effects = model_signature(final, spec.axis).effects
+    res.errors_um, _ = channel_errors(model, traces, spec.axis)
+    res.outputs["report"] = "entry.html"
+    return model
+
+
+def _compare(item: WorkItem, model, traces):
+    from ..model import load_model
+    prev = item.previous
+    old = load_model(prev.model_path)
+    if item.spec.axis not in getattr(old, "axes", []):
+        raise InputError(f"the previous model has no axis '{item.spec.axis}'", source=prev.model_path)
+    on_new, residuals = channel_errors(old, traces, item.spec.axis)
+    new_on_new, _ = channel_errors(model, traces, item.spec.axis)
+    errors = {}
+    for ch in set(on_new) | set(prev.errors_um):
+        errors[ch] = {"old_on_old": prev.errors_um.get(ch), "old_on_new": on_new.get(ch),
+                      "new_on_new": new_on_new.get(ch)}
+    new_sig = model_signature(model, item.spec.axis)
+    new_sig.effects = _final_effects(item, model)
+    return compare_models(ModelSignature(**prev.signature), new_sig, errors, residuals,
+                          Thresholds.from_dict(item.thresholds), previous=prev.source)
+
+
+def _final_effects(item, model):
+    p = Path(item.entry_dir) / "model_diagnosed.json"
+    if p.is_file():
+        from ..model import load_model
+        return model_signature(load_model(p), item.spec.axis).effects
+    return model_signature(model, item.spec.axis).effects
+
+
+def _entry_report(res: EntryResult, out: Path):
+    from ..outputs import atomic_write
+    from ..report import Report
+    rep = Report(f"Fleet entry {res.key}", meta={"input hash": res.input_hash[:16], "worker": res.worker})
+    sig = res.signature
+    lines = [f"Status: {res.status}."]
+    if sig is not None:
+        lines.append("Poles [Hz]: " + ", ".join(f"{re:.3g}{im:+.3g}j" for re, im in sig.poles_hz)
+                     + f"; friction step peak {sig.friction_peak_um or 0:.3g} µm; v_tilde "
+                     f"{sig.v_tilde_mm_s or 0:.3g} mm/s; effects {sig.effects or 'none'}.")
+    if res.change is not None:
+        lines.append(f"Against {res.change.previous}: {res.change.summary}.")
+    rep.add_text("\n\n".join(lines), heading="Summary")
+    if res.validation:
+        rep.add_table("validation", [{"trace": v.trace, "e RMS discrepancy [µm]": v.rms_um,
+                                      "e MAX discrepancy [µm]": v.max_um,
+                                      "max |FMU - reference| [mm]": v.max_abs_diff_reference_mm,
+                                      "problems": len(v.problems)} for v in res.validation],
+                      caption="The FMU through fmpy on the held-out traces (the training trace when "
+                              "there is none).")
+    if res.errors_um:
+        rep.add_table("errors", [{"channel": k, "free-run position error RMS [µm]": v}
+                                 for k, v in res.errors_um.items()])
+    if res.change is not None and res.change.evidence:
+        rep.add_text("\n\n".join(res.change.evidence), heading="Evidence of change")
+    rep.add_table("timings", [{"stage": k, "wall time [s]": v} for k, v in asdict(res.timings).items()])
+    rep.add_data("entry", res.to_dict())
+    atomic_write(out / "entry.html", rep.html())
