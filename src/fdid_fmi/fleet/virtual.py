@@ -56,7 +56,8 @@ def fleet_axes(n_machines):
 
 
 def default_changes(axes):
-    """A plausible second night: every 4th axis gets one change, cycling through CHANGE_KINDS.
+    """A plausible second night: every 5th axis (the 3rd, 8th, 13th, ...: with and without
+    feed-forward, x and y) gets one change, cycling through CHANGE_KINDS.
 
     Returns
     -------
@@ -65,7 +66,7 @@ def default_changes(axes):
     out = {}
     k = 0
     for i, va in enumerate(axes):
-        if i % 4 == 1:
+        if i % 5 == 2:
             out[(va.machine, va.axis)] = CHANGE_KINDS[k % len(CHANGE_KINDS)]
             k += 1
     return out
