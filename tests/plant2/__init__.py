@@ -7,7 +7,8 @@ sets with one undeclared effect at a time).
 """
 from .params import Axis, Coupling, Machine, flexible_y, rigid, with_feedforward
 from .plant import simulate, simulate_axis
+from .scenarios import CLEAN, EFFECTS, SCENARIOS, scenario
 from .trajectories import Path, circle, diamond, point_to_point, random_moves, reversals
 
-__all__ = ["Axis", "Coupling", "Machine", "Path", "circle", "diamond", "flexible_y", "point_to_point",
-           "random_moves", "reversals", "rigid", "simulate", "simulate_axis", "with_feedforward"]
+__all__ = ["Axis", "CLEAN", "Coupling", "EFFECTS", "Machine", "Path", "SCENARIOS", "circle", "diamond", "flexible_y", "point_to_point",
+           "random_moves", "reversals", "rigid", "scenario", "simulate", "simulate_axis", "with_feedforward"]

@@ -113,14 +113,15 @@ def point_to_point(Ts, targets, feeds, dwells, acc, jerk, axes=("x",), start=Non
 
 
 def random_moves(Ts, n_moves=12, axes=("x", "y"), seed=0, travel=(-60.0, 60.0), feed=(5.0, 250.0),
-                 acc=3000.0, jerk=2e5, small_fraction=0.3, dwell=(0.05, 0.4), single_axis_fraction=0.6):
+                 acc=3000.0, jerk=2e5, small_fraction=0.3, dwell=(0.05, 0.4), single_axis_fraction=0.6,
+                 max_move_s=1.2):
     """Training-style moves: random targets, feeds and dwells; some moves tiny (friction), some
     on one axis only, the rest on all axes together.
 
     Parameters
     ----------
     travel : (lo, hi) mm of each axis
-    feed : (lo, hi) mm/s, drawn log-uniformly
+    feed : (lo, hi) mm/s, drawn log-uniformly (raised where a move would last over ``max_move_s``)
     small_fraction : share of moves shorter than 0.5 mm
     """
     rng = np.random.default_rng(seed)
@@ -139,7 +140,8 @@ def random_moves(Ts, n_moves=12, axes=("x", "y"), seed=0, travel=(-60.0, 60.0), 
             if abs(tgt[i] - pos[i]) < 0.01:
                 tgt[i] = pos[i] - step
         targets.append(tgt)
-        feeds.append(float(np.exp(rng.uniform(np.log(feed[0]), np.log(feed[1])))))
+        f = float(np.exp(rng.uniform(np.log(feed[0]), np.log(feed[1]))))
+        feeds.append(min(feed[1], max(f, float(np.linalg.norm(tgt - pos)) / max_move_s)))
         dwells.append(float(rng.uniform(*dwell)))
         pos = tgt
     p = point_to_point(Ts, targets, feeds, dwells, acc, jerk, axes)
@@ -148,13 +150,14 @@ def random_moves(Ts, n_moves=12, axes=("x", "y"), seed=0, travel=(-60.0, 60.0), 
 
 
 def reversals(Ts, axes=("x", "y"), seed=0, amplitudes=(0.05, 0.3, 2.0, 10.0, 25.0), feeds=(2.0, 20.0, 120.0),
-              acc=4000.0, jerk=4e5, dwell=0.08):
-    """A validation move set unlike the training moves: back-and-forth strokes of growing
-    amplitude at a few feeds (many reversals), axes alternating, in a seeded random order."""
+              acc=4000.0, jerk=4e5, dwell=0.08, max_stroke_s=0.6):
+    """A validation move set unlike the training moves: back-and-forth strokes (amplitudes in mm)
+    at a few feeds (mm/s), every amplitude/feed pair whose stroke lasts at most ``max_stroke_s``
+    seconds at feed, on each axis in turn, in a seeded random order (many reversals)."""
     rng = np.random.default_rng(seed)
     pos = np.zeros(len(axes))
     targets, fs, dws = [], [], []
-    combos = [(a, f, i) for a in amplitudes for f in feeds for i in range(len(axes))]
+    combos = [(a, f, i) for a in amplitudes for f in feeds for i in range(len(axes)) if a / f <= max_stroke_s]
     for k in rng.permutation(len(combos)):
         amp, f, i = combos[k]
         for sgn in (1.0, -1.0):
