@@ -1,0 +1,414 @@
+"""The alignment chain: separately recorded tool-side sensors -> one Trace at the controller's Ts.
+
+Thesis ch. 7.2.1 (Fig. 7-3, Table 7-1): the KGM and accelerometer records were brought onto the
+motor encoders' time base (shift), the accelerometers rotated (Eqn 7.1) and freed of offsets,
+and all resampled, before the MIMO identification of ch. 5 used them. :func:`align` does the
+same, every step estimated from the data and reported with its uncertainty:
+
+=====  =======================  ===========================================================
+step   what                     how
+=====  =======================  ===========================================================
+1      coarse time offset       envelope cross-correlation (timing.coarse_offset)
+2      gravity + bias           rest-to-rest weighted mean (orientation.static_constant)
+3      orientation              single-axis segments -> axis directions -> Wahba rotation
+                                (accelerometer); 2-D Procrustes (grid encoder)
+4      offset + clock drift     windowed cross-correlation vs encoder signals, LS line
+       (2-4 repeated ``iterations`` times, each with the latest clock mapping)
+5      resampling to Ts         zero-phase anti-alias low-pass + cubic spline at the mapped
+                                controller times (resample.to_controller_grid)
+=====  =======================  ===========================================================
+
+The references are the controller's motor-encoder positions (``act``), low-passed at
+``lowpass_hz`` (below the first tool-side mode: there tool and motor move alike) and
+differentiated; the sensor signals get the same zero-phase low-pass, so the filters add no lag.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+from scipy.spatial.transform import Rotation
+
+from ..errors import InputError
+from ..signals import derivative
+from ..trace import Channel, Trace
+from .orientation import (AXIS_INDEX, G_MM_S2, axis_directions, euler_angles, noise_std,
+                          plate_alignment, rotation_from_directions, static_constant)
+from .readers import SensorRecord
+from .resample import lowpass, to_controller_grid
+from .result import AlignmentResult, Estimate, SensorAlignment
+from .timing import coarse_offset, fit_clock, window_lags
+
+__all__ = ["align", "controller_references"]
+
+MACHINE_AXES = ("x", "y", "z")
+
+
+def controller_references(trace: Trace, lowpass_hz):
+    """Low-passed encoder position, velocity, acceleration and jerk per machine axis.
+
+    Returns
+    -------
+    dict axis -> {"p": mm, "v": mm/s, "a": mm/s^2, "j": mm/s^3}, each (N,)
+    """
+    Ts = trace.Ts
+    out = {}
+    for a in trace.axes:
+        if a not in MACHINE_AXES or not trace.has(a, "act"):
+            continue
+        p = lowpass(trace.act(a)[:, None], Ts, lowpass_hz)[:, 0]
+        v = derivative(p, Ts)
+        acc = derivative(v, Ts)
+        out[a] = {"p": p, "v": v, "a": acc, "j": derivative(acc, Ts)}
+    return out
+
+
+def _rest_intervals(t, ref, lo, hi):
+    """Controller-time ramps (first rest, last rest) inside [lo, hi]: encoder speed ~ 0."""
+    speed = np.sqrt(sum(r["v"] ** 2 for r in ref.values()))
+    inside = (t >= lo) & (t <= hi)
+    thr = max(0.5, 0.01 * float(speed[inside].max()))
+    mov = np.flatnonzero(inside & (speed > thr))
+    if mov.size == 0:
+        return (lo, lo), (hi, hi)
+    return (lo, float(t[mov[0]])), (float(t[mov[-1]]), hi)
+
+
+class _Clocked:
+    """A sensor record (low-passed copy splined) evaluated at controller times."""
+
+    def __init__(self, tau, x):
+        self.tau = tau
+        self.spline = CubicSpline(tau, x, axis=0)
+        self.dspline = self.spline.derivative()
+
+    def at(self, tq, mapping, deriv=False):
+        a, b = mapping
+        s = (np.asarray(tq, dtype=float) - a) / b
+        out = np.full((s.size,) + self.spline.c.shape[2:], np.nan)
+        ok = (s >= self.tau[0]) & (s <= self.tau[-1])
+        if ok.any():
+            out[ok] = self.dspline(s[ok]) / b if deriv else self.spline(s[ok])
+        return out
+
+
+def _timing_estimates(mapping, sigma, info, rho, what):
+    a, b = mapping
+    drift = 1.0 / b - 1.0
+    s_drift = sigma[1] / b ** 2 if np.isfinite(sigma[1]) else None
+    note = f"coarse envelope correlation {rho:.2f}; {info['n_windows']} windows, lag scatter " \
+           f"{info['residual_s'] * 1e6:.1f} us" if np.isfinite(info["residual_s"]) else \
+           f"coarse envelope correlation {rho:.2f}; {info['n_windows']} window(s)"
+    return [Estimate("timing", "time_offset", a, sigma[0] if np.isfinite(sigma[0]) else None, "s",
+                     f"envelope xcorr, then windowed xcorr of {what} vs encoder, LS line", note),
+            Estimate("timing", "clock_drift", drift * 1e6, None if s_drift is None else s_drift * 1e6,
+                     "ppm", "slope of the windowed lags (t = offset + tau / (1 + drift))",
+                     "" if info["drift_estimated"] else "not estimable: assumed 0")]
+
+
+def _drift_missing(name, info, window_s, source):
+    if info["drift_estimated"]:
+        return []
+    return [f"{name} ({source}): clock drift not estimable: motion in only {info['n_windows']} "
+            f"window(s) of {window_s:g} s, assumed 0 ppm; record moves spread over a longer time"]
+
+
+def _given_rotation(orientation, name):
+    if orientation is None:
+        return None, []
+    if isinstance(orientation, AlignmentResult):
+        try:
+            s = orientation.sensor(name)
+        except KeyError:
+            return None, []
+        if s.rotation is None:
+            return None, []
+        return Rotation.from_matrix(np.array(s.rotation)), [e for e in s.estimates if e.step == "orientation"]
+    if name not in orientation:
+        return None, []
+    v = orientation[name]
+    ests = []
+    if isinstance(v, dict):
+        ests = [Estimate(**e) for e in v.get("estimates", []) if e.get("step") == "orientation"]
+        v = v["rotation"]
+    rot = v if isinstance(v, Rotation) else Rotation.from_matrix(np.asarray(v, dtype=float))
+    return rot, ests
+
+
+def _align_accelerometer(rec: SensorRecord, t, ref, opts, given):
+    name, src = rec.name, rec.source
+    Ts_s = 1.0 / rec.rate_hz
+    f = rec.data
+    f_lp = lowpass(f, Ts_s, opts["lowpass_hz"])
+    jerk = np.gradient(f_lp, Ts_s, axis=0)
+    env_s = np.linalg.norm(jerk, axis=1)
+    env_r = np.sqrt(sum(r["j"] ** 2 for r in ref.values()))
+    a0, rho = coarse_offset(t, env_r, rec.tau, env_s, opts["max_offset_s"], src,
+                            f"accelerometer '{name}'")
+    mapping = (a0, 1.0)
+    clk = _Clocked(rec.tau, f_lp)
+    rot, given_est = _given_rotation(given, name)
+    wanted = [a for a in rec.axes if a in ref]
+    if not wanted:
+        raise InputError(f"accelerometer '{name}' provides axes {list(rec.axes)}, none of which is "
+                         f"in the controller trace (axes {sorted(ref)})", source=src, column="axes")
+    sigma, info, dirs = (np.nan, np.nan), {}, {}
+    for it in range(opts["iterations"]):
+        lo = max(t[0], mapping[0] + mapping[1] * rec.tau[0])
+        hi = min(t[-1], mapping[0] + mapping[1] * rec.tau[-1])
+        up, down = _rest_intervals(t, ref, lo, hi)
+        to_tau = lambda x: (x - mapping[0]) / mapping[1]  # noqa: E731
+        c, s_c = static_constant(rec.tau, f, (to_tau(up[0]), to_tau(up[1])),
+                                 (to_tau(down[0]), to_tau(down[1])))
+        F = clk.at(t, mapping) - c
+        ok = np.all(np.isfinite(F), axis=1)
+        if rot is None:
+            dirs = axis_directions(F[ok], {a: ref[a]["a"][ok] for a in ref}, wanted, kappa=opts["kappa"])
+            if not dirs:
+                raise InputError(f"accelerometer '{name}': orientation not estimable: none of the axes "
+                                 f"{wanted} accelerates during the sensor record; give the orientation "
+                                 f"of a calibration run", source=src, column="orientation")
+            if len(dirs) >= 2:
+                rot_it, ang, s_ang = rotation_from_directions(dirs)
+                proj = {a: rot_it.as_matrix()[AXIS_INDEX[a]] for a in wanted}
+            else:
+                rot_it = None
+                proj = {a: d["d"] for a, d in dirs.items()}
+        else:
+            rot_it = rot
+            proj = {a: rot.as_matrix()[AXIS_INDEX[a]] for a in wanted}
+        tax = [a for a in proj if a in ref and np.max(np.abs(ref[a]["a"])) > 0]
+        P = np.array([proj[a] for a in tax])
+        Rf = np.column_stack([ref[a]["a"] for a in tax])
+        lags = window_lags(t, Rf, lambda tq: (clk.at(tq, mapping) - c) @ P.T, opts["window_s"],
+                           0.025 if it == 0 else 0.006)
+        mapping, sigma, info = fit_clock(lags, mapping)
+    # final constant with the final mapping
+    lo = max(t[0], mapping[0] + mapping[1] * rec.tau[0])
+    hi = min(t[-1], mapping[0] + mapping[1] * rec.tau[-1])
+    up, down = _rest_intervals(t, ref, lo, hi)
+    to_tau = lambda x: (x - mapping[0]) / mapping[1]  # noqa: E731
+    c, s_c = static_constant(rec.tau, f, (to_tau(up[0]), to_tau(up[1])), (to_tau(down[0]), to_tau(down[1])))
+
+    sa = SensorAlignment(name, "accelerometer", src, rec.rate_hz, mapping=mapping)
+    sa.estimates += _timing_estimates(mapping, sigma, info, rho, "machine-frame acceleration")
+    sa.missing += _drift_missing(name, info, opts["window_s"], src)
+    if rot is not None:
+        ang = euler_angles(rot)
+        if given_est:
+            sa.estimates += [Estimate(e.step, e.name, e.value, e.uncertainty, e.unit, e.method,
+                                      "from the calibration run") for e in given_est]
+        else:
+            sa.estimates += [Estimate("orientation", n, v, None, "deg", "given", "")
+                             for n, v in zip(("alpha", "beta", "gamma"), ang)]
+        rot_final = rot
+    elif len(dirs) >= 2:
+        rot_final, ang, s_ang = rotation_from_directions(dirs)
+        for n, v, s in zip(("alpha", "beta", "gamma"), ang, s_ang):
+            sa.estimates.append(Estimate("orientation", n, float(v), float(s), "deg",
+                                         "Eqn 7.1 from single-axis directions (Wahba, align_vectors)",
+                                         f"axes {sorted(dirs)}"))
+    else:
+        rot_final = None
+        (a1, d1), = dirs.items()
+        d = d1["d"]
+        az, el = np.degrees(np.arctan2(d[1], d[0])), np.degrees(np.arcsin(np.clip(d[2], -1, 1)))
+        sd = np.degrees(d1["sigma_rad"])
+        sa.estimates.append(Estimate("orientation", f"{a1}_direction", [float(az), float(el)], [sd, sd],
+                                     "deg", f"azimuth / elevation of machine {a1} in the sensor frame",
+                                     "single-axis segments"))
+        sa.direction = {a1: d.tolist()}
+        sa.missing.append(f"accelerometer '{name}' ({src}): rotation about machine {a1} not estimable: "
+                          f"only {a1} accelerates in this record; its {a1} acceleration is aligned, the "
+                          f"full orientation needs a run where two axes move (orientation=...)")
+    for a, d in dirs.items():
+        sa.estimates.append(Estimate("orientation", f"gain_{a}", d["gain"], None, "1",
+                                     f"sensor / encoder acceleration below {opts['lowpass_hz']:g} Hz",
+                                     "check: 1 for a rigid axis, > 1 below a tool-side mode"))
+    sa.constant = c.tolist()
+    sa.estimates.append(Estimate("gravity_bias", "gravity_plus_bias", c.tolist(), s_c.tolist(), "mm/s^2",
+                                 "rest-to-rest weighted mean (velocity change 0), sensor frame"))
+    if rot_final is not None:
+        sa.rotation = rot_final.as_matrix().tolist()
+        gs = rot_final.inv().apply([0.0, 0.0, G_MM_S2])
+        s_rot = np.radians(max((e.uncertainty or 0.0) for e in sa.estimates
+                               if e.step == "orientation" and e.unit == "deg"
+                               and not isinstance(e.value, list)) if any(
+            e.step == "orientation" and e.unit == "deg" and not isinstance(e.value, list)
+            for e in sa.estimates) else 0.0)
+        sa.estimates.append(Estimate("gravity_bias", "bias", (c - gs).tolist(),
+                                     np.sqrt(s_c ** 2 + (G_MM_S2 * s_rot) ** 2).tolist(), "mm/s^2",
+                                     "c - R^T g e_z (g = 9806.65 mm/s^2, machine z vertical)"))
+        proj = {a: rot_final.as_matrix()[AXIS_INDEX[a]] for a in wanted}
+    else:
+        proj = {a: np.asarray(sa.direction[a]) for a in sa.direction if a in wanted}
+    sa.estimates.append(Estimate("gravity_bias", "noise", noise_std(f).tolist(), None, "mm/s^2",
+                                 "white-noise level from second differences"))
+    signals = {a: (f - c) @ p for a, p in proj.items()}
+    return sa, signals
+
+
+def _align_grid(rec: SensorRecord, t, ref, opts):
+    name, src = rec.name, rec.source
+    Ts_s = 1.0 / rec.rate_hz
+    P = rec.data
+    p_lp = lowpass(P, Ts_s, opts["lowpass_hz"])
+    env_s = np.linalg.norm(np.gradient(p_lp, Ts_s, axis=0), axis=1)
+    have = [a for a in rec.axes if a in ref]
+    if not have:
+        raise InputError(f"grid encoder '{name}' measures axes {list(rec.axes)}, none of which is in "
+                         f"the controller trace (axes {sorted(ref)})", source=src, column="axes")
+    env_r = np.sqrt(sum(ref[a]["v"] ** 2 for a in have))
+    a0, rho = coarse_offset(t, env_r, rec.tau, env_s, opts["max_offset_s"], src, f"grid encoder '{name}'")
+    mapping = (a0, 1.0)
+    clk = _Clocked(rec.tau, p_lp)
+    Q = np.column_stack([ref[a]["p"] if a in ref else np.zeros(t.size) for a in rec.axes])
+    sigma, info = (np.nan, np.nan), {}
+    for it in range(opts["iterations"]):
+        Pm = clk.at(t, mapping)
+        ok = np.all(np.isfinite(Pm), axis=1)
+        th, s_th, o, s_o, res = plate_alignment(Pm[ok], Q[ok], opts["kappa"])
+        c_, s_ = np.cos(np.radians(th)), np.sin(np.radians(th))
+        R2 = np.array([[c_, -s_], [s_, c_]])
+        idx = [rec.axes.index(a) for a in have]
+        Rv = np.column_stack([ref[a]["v"] for a in have])
+        lags = window_lags(t, Rv, lambda tq: (clk.at(tq, mapping, deriv=True) @ R2.T)[:, idx],
+                           opts["window_s"], 0.025 if it == 0 else 0.006)
+        mapping, sigma, info = fit_clock(lags, mapping)
+    Pm = clk.at(t, mapping)
+    ok = np.all(np.isfinite(Pm), axis=1)
+    th, s_th, o, s_o, res = plate_alignment(Pm[ok], Q[ok], opts["kappa"])
+    c_, s_ = np.cos(np.radians(th)), np.sin(np.radians(th))
+    R2 = np.array([[c_, -s_], [s_, c_]])
+    sa = SensorAlignment(name, "grid_encoder", src, rec.rate_hz, mapping=mapping)
+    sa.estimates += _timing_estimates(mapping, sigma, info, rho, "machine-frame velocity")
+    sa.missing += _drift_missing(name, info, opts["window_s"], src)
+    sa.estimates.append(Estimate("orientation", "angle", th, s_th, "deg",
+                                 "2-D Procrustes vs encoder positions (align_vectors)",
+                                 f"residual {res * 1e3:.2f} um RMS (includes tool-side deflection)"))
+    sa.estimates.append(Estimate("offset", "origin", o.tolist(), s_o.tolist(), "mm",
+                                 "plate origin in machine coordinates (encoder reference)"))
+    sa.rotation = np.block([[R2, np.zeros((2, 1))], [np.zeros((1, 2)), np.ones((1, 1))]]).tolist()
+    sa.offset_mm = o.tolist()
+    pm = P @ R2.T + o
+    signals = {a: pm[:, rec.axes.index(a)] for a in have}
+    return sa, signals
+
+
+def align(controller: Trace, sensors, orientation=None, lowpass_hz=10.0, window_s=1.0,
+          max_offset_s=None, aa_fraction=0.8, iterations=3, min_overlap_s=0.5) -> AlignmentResult:
+    """Bring separately recorded tool-side sensors onto the controller trace (thesis ch. 7.2.1).
+
+    Parameters
+    ----------
+    controller : Trace
+        The controller's trace: per axis (named x / y / z) at least ``act`` (motor encoder, mm);
+        its Ts and time base are the target.
+    sensors : sequence of :class:`~fdid_fmi.align.readers.SensorRecord`
+        Accelerometers and grid encoders, each on its own clock (see ``read_accelerometer``,
+        ``read_grid_encoder``).
+    orientation : AlignmentResult or dict name -> 3x3 / Rotation / {"rotation": ...}, optional
+        Accelerometer orientations from a calibration run (the thesis's diamond): used instead
+        of estimating them (a run moving one axis cannot fix the rotation about it).
+    lowpass_hz : float, Hz
+        Zero-phase low-pass for the estimation signals; below the first tool-side mode.
+    window_s : float, s         window of the lag estimates (clock drift)
+    max_offset_s : float, optional  bound on the time offset searched
+    aa_fraction : float         anti-alias cut-off as a fraction of the controller's Nyquist
+    iterations : int            rounds of constant / orientation / timing
+    min_overlap_s : float, s    shortest common record accepted
+
+    Returns
+    -------
+    AlignmentResult
+        ``trace``: the controller channels over the common overlap plus ``<axis>_tool_mm``
+        (grid encoder, role ``tool``) and ``<axis>_acc_mm_s2`` (accelerometers, role ``acc``;
+        several sensors on one axis are added with their ``sign``: head - table).
+    """
+    if not isinstance(controller, Trace):
+        raise InputError("the controller record must be a Trace (fdid_fmi.io.read_trace)", column="controller")
+    sensors = list(sensors)
+    if not sensors:
+        raise InputError("no sensor records given", column="sensors")
+    names = [s.name for s in sensors]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise InputError(f"sensor names must be unique; repeated: {dup}", column="name")
+    Ts = controller.Ts
+    nyq = 0.5 / Ts
+    if not (0 < lowpass_hz < nyq):
+        raise InputError(f"lowpass_hz must lie in (0, {nyq:g}) Hz, got {lowpass_hz!r}", column="lowpass_hz")
+    if not (0 < aa_fraction <= 1):
+        raise InputError(f"aa_fraction must lie in (0, 1], got {aa_fraction!r}", column="aa_fraction")
+    ref = controller_references(controller, lowpass_hz)
+    if not ref:
+        raise InputError(f"the controller trace has no measured position of an axis named x, y or z "
+                         f"(axes {controller.axes})", source=controller.source, column="act")
+    t = controller.t
+    opts = dict(lowpass_hz=float(lowpass_hz), window_s=float(window_s), max_offset_s=max_offset_s,
+                iterations=int(iterations), kappa=float(nyq / lowpass_hz))
+    results, signals = [], []
+    for rec in sensors:
+        if rec.kind == "accelerometer":
+            sa, sig = _align_accelerometer(rec, t, ref, opts, orientation)
+        else:
+            sa, sig = _align_grid(rec, t, ref, opts)
+        results.append(sa)
+        signals.append((rec, sa, sig))
+
+    # common overlap (controller time), a few sensor samples inside each record's ends
+    lo, hi = float(t[0]), float(t[-1])
+    for rec, sa, _ in signals:
+        a, b = sa.mapping
+        m = 4.0 / rec.rate_hz
+        lo = max(lo, a + b * (rec.tau[0] + m))
+        hi = min(hi, a + b * (rec.tau[-1] - m))
+    if hi - lo < min_overlap_s:
+        worst = min(signals, key=lambda s: s[1].mapping[0] + s[1].mapping[1] * s[0].tau[-1])
+        raise InputError(f"the sensors and the controller trace overlap for {max(hi - lo, 0):.3g} s "
+                         f"(< {min_overlap_s:g} s) on the controller's time base; e.g. '{worst[0].name}' "
+                         f"covers {worst[1].mapping[0] + worst[1].mapping[1] * worst[0].tau[0]:.3f} to "
+                         f"{worst[1].mapping[0] + worst[1].mapping[1] * worst[0].tau[-1]:.3f} s, the "
+                         f"controller {t[0]:.3f} to {t[-1]:.3f} s", source=controller.source, column="time")
+    k0 = int(np.searchsorted(t, lo - 1e-12))
+    k1 = int(np.searchsorted(t, hi + 1e-12, side="right"))
+    tt = t[k0:k1]
+    channels = {k: Channel(c.name, c.unit, c.data[k0:k1]) for k, c in controller.channels.items()}
+    roles = {a: dict(r) for a, r in controller.roles.items()}
+    replaced = {}
+    acc_sum, tool = {}, {}
+    aa = aa_fraction * nyq
+    for rec, sa, sig in signals:
+        for axis, x in sig.items():
+            y = to_controller_grid(rec.tau, x, sa.mapping, tt, cutoff_hz=aa)
+            if rec.kind == "accelerometer":
+                acc_sum[axis] = acc_sum.get(axis, 0.0) + rec.sign * y
+                sa.axes_out[axis] = f"{axis}_acc_mm_s2"
+            else:
+                if axis in tool:
+                    raise InputError(f"two grid encoders give axis '{axis}'", source=rec.source, column="axes")
+                tool[axis] = y
+                sa.axes_out[axis] = f"{axis}_tool_mm"
+        fs = rec.rate_hz
+        sa.estimates.append(Estimate("resample", "rate", [fs, 1.0 / Ts], None, "Hz",
+                                     "zero-phase Butterworth anti-alias + cubic spline at mapped times",
+                                     f"anti-alias cut-off {aa:.0f} Hz" if aa < 0.98 * 0.5 * fs else
+                                     "interpolation only (sensor slower than the controller)"))
+    for kind, unit, store in (("acc", "mm_s2", acc_sum), ("tool", "mm", tool)):
+        for axis, y in store.items():
+            cname = f"{axis}_{kind}_{unit}"
+            while cname in channels:
+                cname += "_aligned"
+            channels[cname] = Channel(cname, unit, y)
+            r = roles.setdefault(axis, {})
+            if kind in r:
+                replaced[f"{axis}.{kind}"] = r[kind]
+            r[kind] = cname
+    settings = {"lowpass_hz": lowpass_hz, "window_s": window_s, "aa_cutoff_hz": aa,
+                "iterations": iterations, "replaced_roles": replaced}
+    meta = dict(controller.meta)
+    meta["aligned_sensors"] = {s.name: s.source for s in sensors}
+    out = Trace(t=tt, channels=channels, roles=roles, source=controller.source + "+aligned", meta=meta,
+                jitter_tol=controller.jitter_tol)
+    res = AlignmentResult(out, results, (float(tt[0]), float(tt[-1])), settings)
+    out.meta["alignment"] = res.to_dict()
+    return res
