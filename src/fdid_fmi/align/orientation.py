@@ -33,7 +33,7 @@ from scipy.spatial.transform import Rotation
 
 from ..errors import InputError
 
-__all__ = ["G_MM_S2", "static_constant", "axis_directions", "rotation_from_directions",
+__all__ = ["G_MM_S2", "static_constant", "integration_drift", "axis_directions", "rotation_from_directions",
            "euler_angles", "plate_alignment", "noise_std"]
 
 G_MM_S2 = 9806.65
@@ -79,6 +79,28 @@ def static_constant(tau, f, tau_ramp_up, tau_ramp_down):
     c = (w[:, None] * f).sum(axis=0) / sw
     n_eff = sw ** 2 / float(np.sum(w ** 2))
     return c, noise_std(f) / np.sqrt(n_eff)
+
+
+def integration_drift(noise, sigma_c, Ts_sensor, T):
+    """1-sigma drift (mm) of a position obtained by integrating the aligned acceleration twice.
+
+    Over T seconds from a known position and velocity, two terms add (in quadrature): the
+    sensor's white noise integrated twice, variance q T^3 / 3 with q = noise^2 Ts_sensor its
+    spectral level (unchanged by resampling below the noise band), and the residual constant
+    error of the gravity + bias removal, sigma_c T^2 / 2 (thesis sect. 5.2.5: why a d.c.-gain
+    constraint is imposed on acceleration models).
+
+    Parameters
+    ----------
+    noise : float, mm/s^2 RMS per sensor sample;  sigma_c : float, mm/s^2
+    Ts_sensor : float, s;  T : float or array, s
+
+    Returns
+    -------
+    float or array, mm
+    """
+    T = np.asarray(T, dtype=float)
+    return np.sqrt(noise ** 2 * Ts_sensor * T ** 3 / 3.0 + (0.5 * sigma_c * T ** 2) ** 2)
 
 
 def axis_directions(F, ref, axes, kappa=1.0, solo_tol=0.02, active_tol=0.05, min_samples=100):
@@ -186,12 +208,13 @@ def plate_alignment(P, Q, kappa=1.0):
     if spread <= 0:
         raise InputError("the grid encoder did not move: its axis orientation cannot be estimated",
                          column="kgm")
-    A = np.column_stack([Q0, np.zeros(len(Q0))])
-    B = np.column_stack([P0, np.zeros(len(P0))])
-    rot, _ = Rotation.align_vectors(A, B)
-    rv = rot.as_rotvec()
-    if np.hypot(rv[0], rv[1]) > 1e-6:  # a flip out of the plane cannot fit planar data better
-        rot = Rotation.from_rotvec([0.0, 0.0, rv[2]])
+    # planar points plus the plate normal (heavily weighted) pinned to machine z: the solution
+    # is a rotation about z even when the points lie on one line (one axis moved)
+    A = np.vstack([np.column_stack([Q0, np.zeros(len(Q0))]), [0.0, 0.0, 1.0]])
+    B = np.vstack([np.column_stack([P0, np.zeros(len(P0))]), [0.0, 0.0, 1.0]])
+    w = np.ones(len(A))
+    w[-1] = spread
+    rot, _ = Rotation.align_vectors(A, B, weights=w)
     theta = float(rot.as_rotvec()[2])
     Rm = rot.as_matrix()[:2, :2]
     o = qm - Rm @ pm

@@ -31,7 +31,7 @@ from scipy.spatial.transform import Rotation
 from ..errors import InputError
 from ..signals import derivative
 from ..trace import Channel, Trace
-from .orientation import (AXIS_INDEX, G_MM_S2, axis_directions, euler_angles, noise_std,
+from .orientation import (AXIS_INDEX, G_MM_S2, axis_directions, euler_angles, integration_drift, noise_std,
                           plate_alignment, rotation_from_directions, static_constant)
 from .readers import SensorRecord
 from .resample import lowpass, to_controller_grid
@@ -241,8 +241,18 @@ def _align_accelerometer(rec: SensorRecord, t, ref, opts, given):
         proj = {a: rot_final.as_matrix()[AXIS_INDEX[a]] for a in wanted}
     else:
         proj = {a: np.asarray(sa.direction[a]) for a in sa.direction if a in wanted}
-    sa.estimates.append(Estimate("gravity_bias", "noise", noise_std(f).tolist(), None, "mm/s^2",
+    nz = noise_std(f)
+    sa.estimates.append(Estimate("gravity_bias", "noise", nz.tolist(), None, "mm/s^2",
                                  "white-noise level from second differences"))
+    # drift of the twice-integrated machine-axis acceleration over a 1 s move (1 sigma)
+    drift = {a: float(integration_drift(float(np.sqrt(np.sum((p * nz) ** 2))),
+                                        float(np.sqrt(np.sum((p * s_c) ** 2))), Ts_s, 1.0))
+             for a, p in proj.items()}
+    for a, d in drift.items():
+        sa.estimates.append(Estimate("gravity_bias", f"drift_1s_{a}", d, None, "mm",
+                                     "1-sigma position drift of the double integral over 1 s "
+                                     "(noise random walk + residual bias), integration_drift()",
+                                     "scales as T^1.5 (noise) and T^2 (bias)"))
     signals = {a: (f - c) @ p for a, p in proj.items()}
     return sa, signals
 
