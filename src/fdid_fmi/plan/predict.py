@@ -124,6 +124,19 @@ def fmu_axes(fmu_path):
     return axes, (float(step) if step else None)
 
 
+def model_from_fmu(fmu_path):
+    """The DriveModel an fdid FMU ships in ``resources/model.json``."""
+    import json
+    import zipfile
+    from ..model import DriveModel
+    try:
+        with zipfile.ZipFile(fmu_path) as zf:
+            d = json.loads(zf.read("resources/model.json"))
+    except (KeyError, OSError, zipfile.BadZipFile, ValueError) as exc:
+        raise InputError(f"carries no readable resources/model.json ({exc})", source=str(fmu_path)) from None
+    return DriveModel.from_dict(d, source=f"{fmu_path}:resources/model.json")
+
+
 def run_fmu(fmu_path, interp, axes):
     """Predicted positions {axis: (N,)} from the FMU through ``fmpy.simulate_fmu`` (an input
     table with the commanded positions at every sample; communication step = Ts)."""

@@ -1,0 +1,346 @@
+"""Per-block feed overrides that keep the predicted contour error within a tolerance.
+
+1. **First pass, quasi-static (thesis Eqn 3.4-3.6).** The tracking-error transfer function of the
+   model's linear part is expanded around s = 0, G_er(s) ~ K_vel s + K_acc s^2 + K_jerk s^3
+   (Taylor coefficients by Cauchy's integral on a circle inside the slowest pole). For each
+   cutting block the error *normal to the path* has the same form with effective gains:
+
+   * a straight block with unit direction u and normal n: K_eff = |sum_i n_i u_i K_i| (only the
+     axes' *mismatch* leaves the path);
+   * an arc of radius R at feed v: the velocity mismatch |K_vel,x - K_vel,y| / 2 v, the radial
+     (centripetal) error (K_acc + K_vel^2 / 2) v^2 / R of the mean axis (the K_vel^2 / 2 term is
+     the lag along a curved path) and the centripetal jerk v^3 / R^2 through |K_jerk|.
+
+   :func:`fdid_fmi.identify.quasi_static.feed_limits` (Eqn 3.6: |K_vel v| + |K_acc a| +
+   |K_jerk j| <= e_max) then checks a candidate feed with the accelerations and jerks the
+   interpolator uses at that feed; the largest feed that passes (bisection) is the first guess.
+2. **Dynamic correction.** The whole program is interpolated with the current overrides and run
+   through the twin (model or FMU); each cutting block's largest |contour error| is compared
+   with the tolerance and its override bracketed (feasible below, infeasible above) and bisected,
+   all blocks at once, until every bracket is within 2 %. A last check runs the chosen feeds
+   and lowers any block (and the one before it, whose lag carries into the corner) that still
+   exceeds the tolerance.
+
+Overrides never exceed 100 % (the programmed feed is the planner's cutting choice; rapids are
+left alone). The uniform reduction the result is compared with is the largest single override
+for all cutting blocks that keeps every block within the tolerance (bisection, same twin).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..model import QuasiStaticModel
+from .interpolate import AXES, block_profile, interpolate
+from .ncprogram import Program
+from .predict import predict
+
+
+def quasi_static_gains(model, axes=None):
+    """K_vel [s], K_acc [s^2], K_jerk [s^3] of each axis from a DriveModel's linear part.
+
+    Taylor coefficients at s = 0 of G_er(s) = e(s)/x_r(s) with z = exp(s Ts) (Eqn 3.2-3.3),
+    from the model's ``error`` output (or 1 - position/command).
+
+    Returns
+    -------
+    QuasiStaticModel
+    """
+    from ..virtual.drive import taylor_coefficients
+    A, B, C, D, Ts = model.A, model.B, model.C, model.D, model.Ts
+    poles = [abs(p) for p in model.poles if abs(p) > 0]
+    rho = 0.2 * (min(poles) if poles else 1.0 / Ts * 0.01)
+    gains = {}
+    n = A.shape[0]
+    for ax in axes or model.axes:
+        i = model.input_index("command", ax)
+        oe = model.output_index("error", ax)
+        op = model.output_index("position", ax)
+
+        def G(s, i=i, oe=oe, op=op):
+            out = np.empty(s.shape, complex)
+            for k, sk in enumerate(s):
+                z = np.exp(sk * Ts)
+                x = np.linalg.solve(z * np.eye(n) - A, B[:, i])
+                if oe is not None:
+                    out[k] = C[oe] @ x + D[oe, i]
+                else:
+                    out[k] = 1.0 - (C[op] @ x + D[op, i])
+            return out
+
+        c = taylor_coefficients(G, rho, n_terms=4, n_points=32)
+        gains[ax] = {"K_vel": c[1], "K_acc": c[2], "K_jerk": c[3]}
+    return QuasiStaticModel(Ts=Ts, gains=gains, cutoff_hz=min(50.0, 0.1 / Ts),
+                            method="quasi-static (Taylor series of the model)")
+
+
+def _block_gains(block, qs, axes):
+    """Effective normal-error gains of a block (see module docstring) and its radius (or inf).
+
+    Returns ``(k, dk, R)``: k = gains of the path-normal terms (line: mismatch gains; arc: the
+    radial gains K_vel mismatch / 2, K_acc + K_vel^2 / 2, K_jerk of the mean axis), dk = the
+    mismatch gains that act on the tangential acceleration and jerk of an arc (zeros for lines).
+    """
+    ix = [AXES.index(a) for a in axes[:2]]
+    g = [qs.gains[a] for a in axes[:2]]
+    keys = ("K_vel", "K_acc", "K_jerk")
+    zero = {key: 0.0 for key in keys}
+    if block.kind == "line":
+        d = (block.end - block.start)[ix]
+        L = float(np.linalg.norm(d))
+        if L == 0:
+            return zero, zero, math.inf
+        u = d / L
+        nrm = np.array([-u[1], u[0]])
+        frac = L / block.length                  # share of the move in the model's plane
+        k = {key: frac * abs(sum(nrm[m] * u[m] * g[m][key] for m in range(2))) for key in keys}
+        return k, zero, math.inf
+    kv = [gg["K_vel"] for gg in g]
+    ka = [gg["K_acc"] for gg in g]
+    kj = [gg["K_jerk"] for gg in g]
+    k = {"K_vel": abs(kv[0] - kv[1]) / 2,
+         "K_acc": abs(np.mean(ka) + np.mean(kv) ** 2 / 2),
+         "K_jerk": abs(float(np.mean(kj)))}
+    dk = {"K_vel": 0.0, "K_acc": abs(ka[0] - ka[1]) / 2, "K_jerk": abs(kj[0] - kj[1]) / 2}
+    return k, dk, 0.5 * (block.r0 + block.r1)
+
+
+def first_pass(program, limits, Ts, qs, axes, tol_mm, min_override=0.05):
+    """Quasi-static overrides per cutting block: the largest feed v whose feed-dependent terms
+    pass :func:`~fdid_fmi.identify.quasi_static.feed_limits` (Eqn 3.6) with the block's
+    effective gains: v itself and, on arcs, the centripetal acceleration v^2/R and jerk
+    v^3/R^2. (The tangential acceleration and jerk are set by the axis limits, not by F: the
+    dynamic check judges them.)
+
+    Returns
+    -------
+    dict block index -> override in [min_override, 1]
+    """
+    from ..identify.quasi_static import feed_limits
+    out = {}
+    for b in program.blocks:
+        if b.kind not in ("line", "arc") or b.length == 0:
+            continue
+        k, _, R = _block_gains(b, qs, axes)
+        m = QuasiStaticModel(Ts=Ts, gains={"n": k}, cutoff_hz=qs.cutoff_hz)
+        prof, _, c = block_profile(b, limits, Ts, 1.0)
+        v1 = prof.v_peak * c
+
+        def within(f):
+            v = v1 * f
+            if math.isfinite(R):
+                return feed_limits(m, "n", tol_mm, v_max=v, a_max=v * v / R, j_max=v ** 3 / R ** 2)["within"]
+            return feed_limits(m, "n", tol_mm, v_max=v)["within"]
+
+        if within(1.0):
+            out[b.index] = 1.0
+            continue
+        lo, hi = min_override, 1.0
+        if not within(lo):
+            out[b.index] = lo
+            continue
+        while hi / lo > 1.02:
+            mid = math.sqrt(lo * hi)
+            lo, hi = (mid, hi) if within(mid) else (lo, mid)
+        out[b.index] = lo
+    return out
+
+
+@dataclass
+class FeedPlan:
+    """Result of :func:`optimize_feeds`.
+
+    Attributes
+    ----------
+    overrides : dict block index -> override (new feed / programmed feed)
+    first_pass : dict block index -> quasi-static override
+    before, after : Prediction   the programmed and the optimised program
+    uniform_override : float     the single override that keeps every block within tol
+    uniform_cycle_time_s : float
+    uniform_max_contour_um : float
+    rows : list[dict]            the table (block, line, feeds, errors, durations)
+    iterations : int             twin runs in the dynamic correction
+    reachable : bool             every cutting block within tol at the end
+    """
+
+    overrides: dict
+    first_pass: dict
+    before: object
+    after: object
+    uniform_override: float
+    uniform_cycle_time_s: float
+    uniform_max_contour_um: float
+    rows: list = field(default_factory=list)
+    iterations: int = 0
+    reachable: bool = True
+
+    def new_feeds_mm_s(self, program):
+        return {b.index: b.feed * self.overrides.get(b.index, 1.0) for b in program.blocks
+                if b.kind in ("line", "arc")}
+
+
+def _block_max(pr, idx):
+    sel = pr.interp.block_of_sample == idx
+    return float(np.max(np.abs(pr.contour[sel]))) if sel.any() else 0.0
+
+
+def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, max_iter=10,
+                   rel_tol=0.03, min_override=0.05, progress=False, before=None):
+    """Per-block feed overrides within ``tol_mm`` of contour error (see module docstring).
+
+    Parameters
+    ----------
+    program : Program
+    limits : dict axis -> AxisLimits
+    Ts : float, s
+    tol_mm : float, contour tolerance (mm)
+    model : DriveModel (also gives the quasi-static gains), or
+    fmu : path of an fdid FMU (then ``qs`` or the FMU's shipped model gives the gains)
+    qs : QuasiStaticModel, optional (default: :func:`quasi_static_gains` of the model)
+    before : Prediction of the programmed feeds, optional (computed otherwise)
+
+    Returns
+    -------
+    FeedPlan
+    """
+    if not (tol_mm > 0 and math.isfinite(tol_mm)):
+        raise InputError(f"--tol must be > 0, got {tol_mm!r}", column="--tol")
+    if model is None and fmu is None:
+        raise InputError("give a model or an FMU", column="--model/--fmu")
+    twin = dict(model=model, fmu=fmu)
+    if qs is None:
+        if model is None:
+            from .predict import model_from_fmu
+            qs = quasi_static_gains(model_from_fmu(fmu))
+        else:
+            qs = quasi_static_gains(model)
+    axes = list(qs.axes)
+    if len(axes) < 2:
+        raise InputError("feed optimisation needs a model of (at least) two axes: the contour error "
+                         "is in their plane", column="axes")
+
+    def run(ov):
+        return predict(interpolate(program, limits, Ts, overrides=ov), tol_mm=tol_mm, program=program, **twin)
+
+    cutting = [b.index for b in program.blocks if b.kind in ("line", "arc") and b.length > 0]
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(cutting) + 2, desc="feed optimisation", unit="block", leave=False)
+    if before is None:
+        before = run({})
+    fp = first_pass(program, limits, Ts, qs, axes, tol_mm, min_override)
+    f = dict(fp)
+    blocks = program.blocks
+    sims = 0
+
+    def local_error(b, fb):
+        """Largest |contour error| in the windows of blocks b and b+1 when the program from
+        block b-1 to b+1 runs alone (b-1 at its chosen override, b+1 at its first-pass one):
+        with exact stops, the lag a block leaves at its end shows in the next block's window."""
+        nonlocal sims
+        i = b
+        lo_i = max(0, i - 1)
+        hi_i = min(len(blocks), i + 2)
+        sub = Program(blocks=[_reindex(bb, k) for k, bb in enumerate(blocks[lo_i:hi_i])],
+                      start=blocks[lo_i].start, source=program.source)
+        ov = {k: (fb if bb.index == b else f.get(bb.index, 1.0)) for k, bb in enumerate(blocks[lo_i:hi_i])}
+        pr = predict(interpolate(sub, limits, Ts, overrides=ov, settle=0.2), tol_mm=tol_mm, program=sub, **twin)
+        sims += 1
+        return max(_block_max(pr, k) for k, bb in enumerate(blocks[lo_i:hi_i]) if bb.index >= b)
+
+    for b in cutting:
+        if local_error(b, f[b]) <= tol_mm:
+            lo, hi = f[b], 1.0
+            if lo < 1.0 and local_error(b, 1.0) <= tol_mm:
+                lo = 1.0
+        else:
+            lo, hi = 0.0, f[b]
+            g = f[b]
+            while g > min_override:
+                g = max(min_override, g * 0.6)
+                if local_error(b, g) <= tol_mm:
+                    lo = g
+                    break
+                hi = g
+        if lo == 0.0:
+            f[b] = min_override
+        else:
+            while hi / lo > 1 + rel_tol:
+                mid = math.sqrt(lo * hi)
+                lo, hi = (mid, hi) if local_error(b, mid) <= tol_mm else (lo, mid)
+            f[b] = lo
+        if bar is not None:
+            bar.update(1)
+    it = sims
+    # final check of the whole program with the chosen feeds
+    after = run(f)
+    for _ in range(8):
+        bad = [b for b in cutting if _block_max(after, b) > tol_mm and f[b] > min_override]
+        if not bad:
+            break
+        for b in bad:
+            f[b] = max(min_override, 0.9 * f[b])
+            i = cutting.index(b)
+            if i > 0:
+                f[cutting[i - 1]] = max(min_override, 0.95 * f[cutting[i - 1]])
+        after = run(f)
+
+    def tick():
+        if bar is not None:
+            bar.update(0)
+    reachable = all(_block_max(after, b) <= tol_mm for b in cutting)
+    # uniform reduction: one override for all cutting blocks
+    ulo, uhi = 0.0, 1.0
+    if all(_block_max(before, b) <= tol_mm for b in cutting):
+        ulo, upr = 1.0, before
+    else:
+        upr = None
+        g = max(min_override, min(f.values()) if f else 1.0)
+        for _ in range(20):
+            pr = run({b: g for b in cutting})
+            tick()
+            if all(_block_max(pr, b) <= tol_mm for b in cutting):
+                ulo, upr = g, pr
+            else:
+                uhi = g
+            if ulo == 0.0:
+                if g <= min_override:
+                    break
+                g = max(min_override, 0.8 * g)
+            elif uhi / ulo <= 1 + rel_tol / 2:
+                break
+            else:
+                g = math.sqrt(ulo * uhi)
+    if bar is not None:
+        bar.close()
+    rows = []
+    for b in program.blocks:
+        if b.kind not in ("line", "arc", "rapid"):
+            continue
+        k0, k1 = before.interp.spans[b.index]
+        a0, a1 = after.interp.spans[b.index]
+        ov = f.get(b.index, 1.0)
+        rows.append({"block": b.index + 1, "line": b.line, "N": b.number if b.number is not None else "",
+                     "kind": b.kind,
+                     "feed_mm_min": b.feed * 60 if math.isfinite(b.feed) else float("inf"),
+                     "first_pass_mm_min": (b.feed * 60 * fp.get(b.index, 1.0)) if math.isfinite(b.feed) else float("inf"),
+                     "new_feed_mm_min": b.feed * 60 * ov if math.isfinite(b.feed) else float("inf"),
+                     "override_pct": 100 * ov,
+                     "contour_max_before_um": _block_max(before, b.index) * 1e3,
+                     "contour_max_after_um": _block_max(after, b.index) * 1e3,
+                     "time_before_s": (k1 - k0) * Ts, "time_after_s": (a1 - a0) * Ts})
+    return FeedPlan(overrides=f, first_pass=fp, before=before, after=after,
+                    uniform_override=ulo,
+                    uniform_cycle_time_s=upr.interp.cycle_time if upr is not None else float("nan"),
+                    uniform_max_contour_um=(max(_block_max(upr, b) for b in cutting) * 1e3
+                                            if upr is not None and cutting else float("nan")),
+                    rows=rows, iterations=it, reachable=reachable)
+
+
+def _reindex(block, k):
+    from dataclasses import replace
+    return replace(block, index=k)
