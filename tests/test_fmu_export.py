@@ -14,7 +14,7 @@ import fmu_support as fs
 from fdid_fmi.errors import InputError
 from fdid_fmi.fmu import export_fmu
 from fdid_fmi.fmu.build import compiler_available
-from fdid_fmi.fmu.validate import FmuRunner, run_fmu
+from fdid_fmi.fmu.validate import FmuRunner, run_fmu, run_master
 from fdid_fmi.model import QuasiStaticModel
 from fdid_fmi.simulate import simulate
 
@@ -303,8 +303,8 @@ def test_model_description_contents(fmus):
     assert v["x_friction_on"].type == "Boolean" and v["x_v_tilde"].variability == "tunable"
     assert md.defaultExperiment.stepSize == repr(m.Ts) or float(md.defaultExperiment.stepSize) == m.Ts
     deps = {u.variable.name: [d.name for d in u.dependencies] for u in md.outputs}
-    assert deps["x_x"] == ["x_x_cmd"] and deps["x_e"] == ["x_x_cmd"]
-    assert deps["x_x_tool"] == ["x_x_cmd"]   # Tustin: the tool position has feed-through too
+    # causal: the position answers the command one sample later; e = x_cmd - x the same sample
+    assert deps["x_x"] == [] and deps["x_x_tool"] == [] and deps["x_e"] == ["x_x_cmd"]
     cs = md.coSimulation
     assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate and cs.modelIdentifier == "flexible"
     with zipfile.ZipFile(fmu) as zf:
@@ -413,18 +413,28 @@ def test_fmi3_fmu_validates_and_equals_the_reference(tmp_path):
         r.close()
 
 
-def test_fmpy_simulate_fmu_records_after_the_step(fmus):
-    """fmpy.simulate_fmu works on the FMU; its row k+1 is the output after doStep(t_k) with the
-    input of t_k held (the documented one-sample shift against the reference simulator)."""
-    from fmpy import simulate_fmu
-    m, fmu = fmus["siso"]
-    n = 400
-    c = fs.smooth_moves(n, np.random.default_rng(3), start=1.0)
-    sig = np.array(list(zip(np.arange(n) * m.Ts, c)), dtype=[("time", float), ("x_x_cmd", float)])
-    res = simulate_fmu(str(fmu), start_time=0.0, stop_time=(n - 1) * m.Ts, output_interval=m.Ts, input=sig,
-                       output=["x_x"], start_values={"x_x_cmd": c[0]})
-    after = run_fmu(fmu, {"x": c}, m.Ts, outputs=["x_x"], read="after")
-    ref = simulate(m, {"x": c}, Ts=m.Ts)
-    assert np.array_equal(res["x_x"][1:], after["x_x"][:-1])
-    assert abs(res["x_x"][0] - ref.axes["x"]["position"][0]) <= 1e-9
-    assert np.abs(res["x_x"][1:] - ref.axes["x"]["position"][1:]).max() > 1e-6   # shifted: not equal
+@pytest.mark.parametrize("name", list(MODELS))
+def test_masters_see_the_model(fmus, name):
+    """fmpy.simulate_fmu with an input table and step_size = Ts written as a decimal (what every
+    master does: set inputs, doStep, read): positions, velocities and tool positions at each time
+    stamp equal the in-process prediction; e is x_cmd - x with the command the FMU holds."""
+    m, fmu = fmus[name]
+    n = 600
+    cmds, ext = _commands(m, seed=11, v_start=0.0)
+    cmds = {a: c[:n] for a, c in cmds.items()}
+    ext = {k: v[:n] for k, v in ext.items()}
+    t = 0.25 + 0.001 * np.arange(n)                       # an ordinary decimal grid, t0 != 0
+    inputs = {f"{a}_x_cmd": c for a, c in cmds.items()} | ext
+    outs = [v.name for v in read_model_description(str(fmu)).modelVariables if v.causality == "output"]
+    res = run_master(fmu, t, inputs, outs, step_size=0.001)
+    ref = simulate(m, cmds, Ts=m.Ts, externals=ext)
+    for a in m.axes:
+        r = ref.axes[a]
+        assert np.abs(res[f"{a}_x"] - r["position"]).max() <= 1e-9
+        assert np.abs(res[f"{a}_v"] - r["velocity"]).max() <= 1e-6
+        if "tool_position" in r:
+            assert np.abs(res[f"{a}_x_tool"] - r["tool_position"]).max() <= 1e-9
+        held = np.concatenate([cmds[a][:1], cmds[a][:-1]])
+        assert np.abs(res[f"{a}_e"] - (held - r["position"])).max() <= 1e-9
+        # and not the same-sample error: the held command lags by one step
+        assert np.abs(res[f"{a}_e"][1:] - r["error"][1:]).max() > 1e-6

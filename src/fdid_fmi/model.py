@@ -34,7 +34,7 @@ import numpy as np
 from .errors import InputError
 
 FORMAT = "fdid-fmi-model"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2          # 2: causal models (no same-sample response to commands)
 INPUT_KINDS = ("command", "external", "friction", "feature")
 OUTPUT_KINDS = ("position", "error", "velocity", "tool_position", "acceleration", "other")
 FEATURE_FUNCTIONS = ("sat", "abs_sat", "stribeck", "sin_position", "cos_position")
@@ -175,10 +175,28 @@ class DriveModel:
                 raise InputError(f"axis '{ax}' has no position output", column=ax)
         if len(set(p.name for p in self.inputs)) != m or len(set(p.name for p in self.outputs)) != p:
             raise InputError("input and output names must be unique", column="names")
+        self._check_causal()
         rho = max(abs(np.linalg.eigvals(self.A))) if n else 0.0
         if rho >= 1.0:
             raise InputError(f"the model is not stable (spectral radius of A = {rho:.6f})", column="A")
         check_simulation_numbers(self)
+
+    def _check_causal(self):
+        """No same-sample response to an input from outside the drive (``delayed_input``),
+        except e = x_r - x following its own command with gain 1 (DESIGN.md, causality)."""
+        for j, out in enumerate(self.outputs):
+            if out.kind == "other":
+                continue
+            for i, inp in enumerate(self.inputs):
+                if not delayed_input(inp.kind, inp.params):
+                    continue
+                own = out.kind == "error" and inp.kind == "command" and inp.axis == out.axis
+                if abs(self.D[j, i] - (1.0 if own else 0.0)) > 1e-12:
+                    raise InputError(
+                        f"output '{out.name}' responds to input '{inp.name}' in the same sample "
+                        f"(D = {float(self.D[j, i]):.6g}, expected {1.0 if own else 0.0:g}); a sampled "
+                        "drive answers one cycle later: identify the model again with this version",
+                        column="D")
 
     # ------------------------------------------------ steady-state helpers
     def steady_state_maps(self):

@@ -1,10 +1,18 @@
-"""The reference simulator: one definition of a DriveModel's free run, shared by every stage.
+"""The free run of a DriveModel: one definition, the C core ``fmu_templates/fdid_core.c``.
 
-The exported FMU implements exactly these semantics (``fmu_templates/``); the two must agree
-to ~1e-9 mm on the same input.
+Every FMU compiles that file; the package builds it at install time (``fdid_fmi._kernel``) and
+:func:`simulate` runs it through :mod:`fdid_fmi.kernel`, so the in-process prediction and an
+exported FMU give the same doubles. A slow pure-Python reading of the same semantics lives only
+in the tests (``tests/sim_oracle.py``).
 
 Semantics (DESIGN.md "Simulation semantics")
 --------------------------------------------
+Causality. Position, velocity and tool-side outputs do not depend on the command of the same
+sample (``model.delayed_input``): x_k is the prediction from the commands up to k-1, so an
+output read after a co-simulation step ``doStep(t_k, Ts)`` is the model's value at t_k+1.
+The error output is e_k = x_r,k - x_k with the command of the same sample (the FMU: the command
+input currently set).
+
 Offsets. Command inputs enter as deviations from their value at the first sample, u_ref; the
 d.c. response G1 u_ref (G1 = C (I-A)^-1 B + D) is added to the outputs. This keeps the states
 small whatever the absolute axis position is.
@@ -24,51 +32,18 @@ Step k, given xi, the inputs (commands, externals) and the axis states of step k
    (linear / +1 / -1 for each friction input, in that order; the first consistent one wins).
    A one-sample lag instead limit-cycles at rest when L*|beta|/v_tilde >> 1;
 3. y = C xi + D u + G1 u_ref; xi <- A xi + B u.
+Sums are numpy's pairwise order with plain IEEE products (no fused multiply-add).
 """
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
 
+from . import kernel
 from .errors import InputError
 from .model import DriveModel, QuasiStaticModel
 from .trace import Trace
-
-_TOL = 1e-12
-
-
-def _mv(M, v):
-    """M @ v summed like the C core (numpy's pairwise order: np.add.reduce over each row)."""
-    return np.add.reduce(np.ascontiguousarray(M) * v, axis=1) if M.shape[1] else np.zeros(M.shape[0])
-
-
-def _lu_solve(M, r):
-    """Gaussian elimination with partial pivoting on lists of floats, in the C core's order
-    (``lu_solve`` in fmu_templates/fdid_core.c). Returns None if singular."""
-    k = len(r)
-    for c in range(k):
-        piv, best = c, abs(M[c][c])
-        for q in range(c + 1, k):
-            if abs(M[q][c]) > best:
-                best, piv = abs(M[q][c]), q
-        if M[piv][c] == 0.0:
-            return None
-        if piv != c:
-            M[c], M[piv] = M[piv], M[c]
-            r[c], r[piv] = r[piv], r[c]
-        for q in range(c + 1, k):
-            f = M[q][c] / M[c][c]
-            for j in range(c + 1, k):
-                M[q][j] -= f * M[c][j]
-            r[q] -= f * r[c]
-    for q in range(k - 1, -1, -1):
-        acc = r[q]
-        for j in range(q + 1, k):
-            acc -= M[q][j] * r[j]
-        r[q] = acc / M[q][q]
-    return r
 
 
 @dataclass
@@ -89,137 +64,6 @@ class SimResult:
     u: np.ndarray
     axes: dict
     output_names: list
-
-
-class _Plan:
-    """Index bookkeeping of a DriveModel, computed once per simulation."""
-
-    def __init__(self, model: DriveModel, params=None):
-        params = params or {}
-        self.m = model
-        ins = model.inputs
-        self.axes = model.axes
-        self.cmd = {p.axis: i for i, p in enumerate(ins) if p.kind == "command"}
-        self.ext = [i for i, p in enumerate(ins) if p.kind == "external"]
-        self.fric = [i for i, p in enumerate(ins) if p.kind == "friction"]
-        self.feat = [i for i, p in enumerate(ins) if p.kind == "feature"]
-        if len(self.fric) > 4:
-            raise InputError("at most 4 friction inputs are supported", column="friction")
-        self.pos = {a: model.output_index("position", a) for a in self.axes}
-        self.err = {a: model.output_index("error", a) for a in self.axes}
-        self.tool = {a: model.output_index("tool_position", a) for a in self.axes}
-        self.vel = {a: model.output_index("velocity", a) for a in self.axes}
-        # friction parameters (overridable like the FMU parameters)
-        self.level, self.vt = [], []
-        for i in self.fric:
-            p = ins[i]
-            on = params.get(f"{p.axis}_friction_on", True)
-            lev = params.get(f"{p.axis}_friction_level", p.params.get("level", 1.0))
-            vt = params.get(f"{p.axis}_v_tilde", p.params["v_tilde"])
-            if not vt > 0:
-                raise InputError(f"v_tilde must be > 0 mm/s, got {vt!r}", column=f"{p.axis}_v_tilde")
-            self.level.append(float(lev) if on else 0.0)
-            self.vt.append(float(vt))
-        self.S, self.S2, self.G1 = model.steady_state_maps()
-        # velocity source of each friction input: (output index, divide-by-Ts?)
-        self.vsrc = []
-        for i in self.fric:
-            a = ins[i].axis
-            if self.vel[a] is not None:
-                self.vsrc.append((self.vel[a], False))
-            else:
-                self.vsrc.append((self.pos[a], True))
-        self.branches = list(itertools.product((0, 1, -1), repeat=len(self.fric)))
-
-
-def _sat(x):
-    return min(1.0, max(-1.0, x))
-
-
-def feature_value(params, v_prev, x_cmd, x_prev):
-    """Value of a ``feature`` input (see DriveModel) from the previous step's axis state."""
-    f = params["function"]
-    if f in ("sin_position", "cos_position"):
-        x = x_cmd if params.get("source", "command") == "command" else x_prev
-        arg = 2.0 * np.pi * x / params["period_mm"]
-        return float(np.sin(arg) if f == "sin_position" else np.cos(arg))
-    s = _sat(v_prev / params["v_tilde"])
-    if f == "sat":
-        return s
-    if f == "abs_sat":
-        return abs(s)
-    if f == "stribeck":
-        return s * float(np.exp(-(v_prev / params["v_s"]) ** 2))
-    raise InputError(f"unknown feature function '{f}'")
-
-
-def solve_friction(alpha, beta, level, vt, branches):
-    """Solve d_i = L_i sat((alpha_i + sum_j beta_ij d_j) / vt_i) exactly (piecewise linear).
-
-    Parameters
-    ----------
-    alpha : (m,) velocity with the friction inputs at zero
-    beta : (m, m) d velocity_i / d d_j
-    level, vt : (m,) friction levels L and transition velocities v_tilde
-    branches : list of tuples over {0: linear, +1, -1}, tried in order
-
-    Returns
-    -------
-    d : (m,) friction input values
-    """
-    m = len(alpha)
-    if m == 1:  # closed form, the common case
-        L, v, a, b = float(level[0]), float(vt[0]), float(alpha[0]), float(beta[0][0])
-        if L == 0.0:
-            return np.zeros(1)
-        den = v - L * b
-        if den > 0:
-            d = L * a / den
-            if abs(d) <= L:
-                return np.array([d])
-        for s in (1.0, -1.0):
-            if s * (a + b * s * L) >= v * (1 - _TOL):
-                return np.array([s * L])
-        return np.array([L * _sat(a / v)])
-    # plain floats: the same operations, in the same order, as the C core
-    al = [float(x) for x in alpha]
-    be = [[float(x) for x in row] for row in beta]
-    lv = [float(x) for x in level]
-    vv = [float(x) for x in vt]
-    for br in branches:
-        d = [br[i] * lv[i] if br[i] else 0.0 for i in range(m)]
-        lin = [i for i in range(m) if br[i] == 0]
-        non = [i for i in range(m) if br[i] != 0]
-        if lin:
-            g = [lv[i] / vv[i] for i in lin]
-            M = [[(1.0 if r == c else 0.0) - g[r] * be[lin[r]][lin[c]] for c in range(len(lin))]
-                 for r in range(len(lin))]
-            rhs = []
-            for r, i in enumerate(lin):
-                acc = 0.0
-                for j in non:
-                    acc += be[i][j] * d[j]
-                rhs.append(g[r] * (al[i] + acc))
-            sol = _lu_solve(M, rhs)
-            if sol is None:
-                continue
-            for r, i in enumerate(lin):
-                d[i] = sol[r]
-        ok = True
-        for i in range(m):
-            if lv[i] == 0.0:
-                continue
-            acc = 0.0
-            for j in range(m):
-                acc += be[i][j] * d[j]
-            z = (al[i] + acc) / vv[i]
-            if (br[i] == 0 and abs(z) > 1 + _TOL) or (br[i] == 1 and z < 1 - _TOL) or \
-                    (br[i] == -1 and z > -1 + _TOL):
-                ok = False
-                break
-        if ok:
-            return np.array(d)
-    return np.array([lv[i] * _sat(al[i] / vv[i]) for i in range(m)])
 
 
 def run_up(cmds, Ts, max_seconds=2.0):
@@ -296,16 +140,16 @@ def simulate(model, trace_or_commands, Ts=None, start_velocity=None, params=None
     if start_velocity is None:
         start_velocity = ({a: (c[1] - c[0]) / ts for a, c in cmds.items()}
                           if isinstance(trace_or_commands, Trace) else {})
-    plan = _Plan(model, params)
+    compiled = kernel.CompiledModel(model)
     if start == "auto" and isinstance(trace_or_commands, Trace):
         R, ext = run_up(cmds, ts)
         if R:
             exts_r = {k: np.concatenate([np.full(R, v[0]), v]) for k, v in exts.items()}
-            res = _run(plan, ext, exts_r, np.concatenate([t[0] - ts * np.arange(R, 0, -1), t]), {})
-            return _trim(res, R)
+            t_r = np.concatenate([t[0] - ts * np.arange(R, 0, -1), t])
+            return _trim(_run(compiled, ext, exts_r, t_r, {}, params), R)
     elif start not in ("auto", "ramp"):
         raise InputError(f"start must be 'auto' or 'ramp', got {start!r}", column="start")
-    return _run(plan, cmds, exts, t, start_velocity)
+    return _run(compiled, cmds, exts, t, start_velocity, params)
 
 
 def _trim(res, R):
@@ -346,80 +190,27 @@ def _commands(model, src, Ts, externals):
     return cmds, exts, np.arange(n) * Ts, Ts
 
 
-def _run(plan, cmds, exts, t, v0):
-    m = plan.m
-    A, B, C, D, G1, Ts = m.A, m.B, m.C, m.D, plan.G1, m.Ts
-    N, nu, ny = len(t), B.shape[1], C.shape[0]
-    ins = m.inputs
-    uref = np.zeros(nu)
-    for a, i in plan.cmd.items():
-        uref[i] = cmds[a][0]
-    yoff = _mv(G1, uref)
-    v0 = {a: float(v0.get(a, 0.0)) for a in plan.axes}
-
-    # --- initial state: steady ramp (see module docstring)
-    u0 = np.zeros(nu)
-    du = np.zeros(nu)
-    for a, i in plan.cmd.items():
-        du[i] = v0[a] * Ts
-    for j, i in enumerate(plan.fric):
-        u0[i] = plan.level[j] * _sat(v0[ins[i].axis] / plan.vt[j])
-    for i in plan.ext:
-        u0[i] = exts[ins[i].name][0]
-    for i in plan.feat:
-        a = ins[i].axis
-        u0[i] = feature_value(ins[i].params, v0[a], cmds[a][0], cmds[a][0])
-    xi = _mv(plan.S, u0) - _mv(plan.S2, du)
-    y0 = _mv(C, xi) + _mv(D, u0) + yoff
-    x_prev = {a: y0[plan.pos[a]] - v0[a] * Ts for a in plan.axes}
-    v_prev = dict(v0)
-
-    Y = np.empty((N, ny))
-    U = np.empty((N, nu))
-    V = {a: np.empty(N) for a in plan.axes}
-    nf = len(plan.fric)
-    beta = np.zeros((nf, nf))
-    for j, (o, diff) in enumerate(plan.vsrc):
-        for jj, i in enumerate(plan.fric):
-            beta[j, jj] = D[o, i] / Ts if diff else D[o, i]
-    u = np.zeros(nu)
-    for k in range(N):
-        for a, i in plan.cmd.items():
-            u[i] = cmds[a][k] - uref[i]
-        for i in plan.ext:
-            u[i] = exts[ins[i].name][k]
-        for i in plan.feat:
-            a = ins[i].axis
-            u[i] = feature_value(ins[i].params, v_prev[a], cmds[a][k], x_prev[a])
-        for i in plan.fric:
-            u[i] = 0.0
-        y = _mv(C, xi) + _mv(D, u) + yoff
-        if nf:
-            alpha = np.empty(nf)
-            for j, (o, diff) in enumerate(plan.vsrc):
-                alpha[j] = (y[o] - x_prev[ins[plan.fric[j]].axis]) / Ts if diff else y[o]
-            d = solve_friction(alpha, beta, plan.level, plan.vt, plan.branches)
-            for j, i in enumerate(plan.fric):
-                u[i] = d[j]
-            y = y + _mv(D[:, plan.fric], d)
-        for a in plan.axes:
-            v_prev[a] = y[plan.vel[a]] if plan.vel[a] is not None else (y[plan.pos[a]] - x_prev[a]) / Ts
-            x_prev[a] = y[plan.pos[a]]
-            V[a][k] = v_prev[a]
-        Y[k] = y
-        U[k] = u
-        xi = _mv(A, xi) + _mv(B, u)
-    return SimResult(t=np.asarray(t), y=Y, u=U, axes=_axis_view(plan, Y, cmds, V),
-                     output_names=[p.name for p in m.outputs])
-
-
-def _axis_view(plan, Y, cmds, V):
-    out = {}
-    for a in plan.axes:
-        x = Y[:, plan.pos[a]]
-        e = Y[:, plan.err[a]] if plan.err[a] is not None else cmds[a] - x
-        d = {"position": x, "error": e, "velocity": V[a]}
-        if plan.tool[a] is not None:
-            d["tool_position"] = Y[:, plan.tool[a]]
-        out[a] = d
-    return out
+def _run(compiled, cmds, exts, t, v0, params):
+    """Free run of commands (dict axis -> array) through the C core; see the module docstring."""
+    m = compiled.model
+    lay = compiled.layout
+    N = len(t)
+    C = np.column_stack([cmds[a] for a in lay.axes])
+    E = np.zeros((N, len(m.inputs)))
+    for i, p in enumerate(m.inputs):
+        if p.kind == "external":
+            E[:, i] = exts[p.name]
+    v0 = np.array([float(v0.get(a, 0.0)) for a in lay.axes])
+    Y, U, V = kernel.run(compiled, C, E, v0, params)
+    if not np.isfinite(Y).all():
+        k = int(np.argmax(~np.isfinite(Y).all(axis=1)))
+        raise InputError(f"the model's outputs are not finite from sample {k} (t = {t[k]:g} s) on: "
+                         "check its parameters", column="model")
+    axes = {}
+    for k, a in enumerate(lay.axes):
+        x = Y[:, lay.axis_pos[k]]
+        e = Y[:, lay.axis_err[k]] if lay.axis_err[k] >= 0 else cmds[a] - x
+        axes[a] = {"position": x, "error": e, "velocity": V[:, k]}
+        if lay.axis_tool[k] >= 0:
+            axes[a]["tool_position"] = Y[:, lay.axis_tool[k]]
+    return SimResult(t=np.asarray(t), y=Y, u=U, axes=axes, output_names=[p.name for p in m.outputs])

@@ -20,6 +20,8 @@ Tracking error is e = x_cmd - x (thesis convention).
 """
 from __future__ import annotations
 
+import functools
+
 import hashlib
 from dataclasses import dataclass, field
 
@@ -125,10 +127,12 @@ class Trace:
                                      f"(channels: {sorted(self.channels)})", source=src, column=cname)
 
     # -------------------------------------------------------------- accessors
-    @property
+    @functools.cached_property
     def Ts(self) -> float:
-        """Sample time in s (median step)."""
-        return float(np.median(np.diff(self.t)))
+        """Sample time in s: the nominal step the record was taken at (:func:`nominal_sample_time`),
+        a clean decimal such as 0.0006 or 0.001 when the time column is within a quarter sample
+        of that grid, else the mean step."""
+        return nominal_sample_time(self.t)
 
     @property
     def n(self) -> int:
@@ -253,3 +257,30 @@ class Trace:
         for name, data in (extra or {}).items():
             channels[name] = Channel(name, (units or {}).get(name, "1"), data)
         return cls(t=t, channels=channels, roles=roles, source=source, meta=dict(meta or {}))
+
+
+def nominal_sample_time(t, max_digits=9, tol=0.25):
+    """The sample time a time column was recorded at, as the shortest clean decimal.
+
+    A controller samples at a round period (0.6 ms, 1 ms, 125 us); the exported time column
+    carries rounding (0.00059999999999998943 s) or a float32 clock (EMPS: steps of 0.99998 to
+    1.00002 ms). The result is the decimal with the fewest significant digits (up to
+    ``max_digits``) whose grid t0 + k Ts stays within ``tol`` samples of every recorded time;
+    when none does (a real clock-rate error), the mean step (t[-1] - t[0]) / (n - 1).
+
+    Parameters
+    ----------
+    t : (n,) strictly increasing times, s
+
+    Returns
+    -------
+    float, s
+    """
+    t = np.asarray(t, float)
+    k = np.arange(t.size)
+    mean = float((t[-1] - t[0]) / (t.size - 1))
+    for digits in range(1, max_digits + 1):
+        c = float(f"{mean:.{digits}g}")
+        if c > 0 and np.max(np.abs(t - t[0] - k * c)) <= tol * c:
+            return c
+    return mean

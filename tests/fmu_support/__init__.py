@@ -6,14 +6,16 @@ the tracking error is e = (c0 s^3 + c1 s^2 + c2 s)/P x_r + d0 s/P d_nf; x = x_r 
 The continuous model is discretised with Tustin, which gives the friction input a direct
 feed-through into the position (and so into the backward-difference velocity): with the
 values used here the friction loop gain L |beta| / v_tilde is about 40, so the exact
-piecewise-linear friction solve matters.
+piecewise-linear friction solve matters. Inputs from outside the drive (commands, external
+inputs, features of the command) then enter one sample late (:func:`causal`), as in every
+identified model: a sampled drive answers one cycle later.
 """
 from __future__ import annotations
 
 import numpy as np
 from scipy.signal import cont2discrete
 
-from fdid_fmi.model import DriveModel, Port
+from fdid_fmi.model import DriveModel, Port, delayed_input
 
 TS = 1e-3
 
@@ -60,14 +62,39 @@ def _disc(A, B, C, D, Ts=TS):
     return Ad, Bd, Cd, Dd
 
 
+def causal(Ts, A, B, C, D, inputs, outputs, **kw):
+    """DriveModel whose outside inputs act one sample late: a register r_i = u_i[k-1] per such
+    input replaces u_i in every row; the error rows stay e = x_r[k] - x[k]."""
+    A, B, C, D = (np.atleast_2d(np.asarray(x, float)) for x in (A, B, C, D))
+    late = [i for i, q in enumerate(inputs) if delayed_input(q.kind, q.params)]
+    n, k = A.shape[0], len(late)
+    A2 = np.zeros((n + k, n + k))
+    A2[:n, :n] = A
+    B2 = np.zeros((n + k, B.shape[1]))
+    B2[:n] = B
+    C2 = np.hstack([C, np.zeros((C.shape[0], k))])
+    D2 = D.copy()
+    for j, i in enumerate(late):
+        A2[:n, n + j] = B[:, i]
+        B2[:n, i] = 0.0
+        B2[n + j, i] = 1.0
+        C2[:, n + j] = D[:, i]
+        D2[:, i] = 0.0
+        for o, q in enumerate(outputs):     # e = x_r[k] - x[k], x from x_r[k-1]
+            if q.kind == "error" and inputs[i].kind == "command" and q.axis == inputs[i].axis:
+                C2[o, n + j] -= 1.0
+                D2[o, i] = 1.0
+    return DriveModel(Ts=Ts, A=A2, B=B2, C=C2, D=D2, inputs=inputs, outputs=outputs, **kw)
+
+
 def siso_model(v_tilde=1.0, level=1.0, **kw):
     """SISO tracking-error model with position and error outputs (velocity by backward difference)."""
     A, B, Ce, De = axis_blocks(**kw)
     C = np.vstack([-Ce, Ce])
     D = np.vstack([np.array([1.0, 0.0]) - De, De])
     Ad, Bd, Cd, Dd = _disc(A, B, C, D)
-    return DriveModel(
-        Ts=TS, A=Ad, B=Bd, C=Cd, D=Dd, method="hand-built",
+    return causal(
+        TS, Ad, Bd, Cd, Dd, method="hand-built",
         inputs=[Port("x_cmd", "mm", "command", "x"),
                 Port("x_dnf", "1", "friction", "x", {"v_tilde": v_tilde, "level": level})],
         outputs=[Port("x_pos", "mm", "position", "x"), Port("x_err", "mm", "error", "x")])
@@ -114,8 +141,8 @@ def coupled_model(kxy=0.3, kyx=0.2, vt_y=2.2, level_y=0.9):
     C2[3, :n], D2[3] = Ced[1], Ded[1]
     C2[4, :n], D2[4] = Cx[1] / TS, Dx[1] / TS
     C2[4, n] = -1.0 / TS
-    return DriveModel(
-        Ts=TS, A=A2, B=B2, C=C2, D=D2, method="hand-built",
+    return causal(
+        TS, A2, B2, C2, D2, method="hand-built",
         inputs=[Port("x_cmd", "mm", "command", "x"),
                 Port("x_dnf", "1", "friction", "x", {"v_tilde": 0.8, "level": 1.0}),
                 Port("y_cmd", "mm", "command", "y"),
@@ -139,8 +166,8 @@ def flexible_model(wm=2 * np.pi * 60, zm=0.05):
     C[1, :6], D[1] = Ce, De
     C[2, 6] = 1.0
     Ad, Bd, Cd, Dd = _disc(A2, B2, C, D)
-    return DriveModel(
-        Ts=TS, A=Ad, B=Bd, C=Cd, D=Dd, method="hand-built",
+    return causal(
+        TS, Ad, Bd, Cd, Dd, method="hand-built",
         inputs=[Port("x_cmd", "mm", "command", "x"),
                 Port("x_dnf", "1", "friction", "x", {"v_tilde": 1.0, "level": 1.0})],
         outputs=[Port("x_pos", "mm", "position", "x"), Port("x_err", "mm", "error", "x"),
@@ -182,8 +209,8 @@ def feature_model():
     C = np.vstack([-Ce2, Ce2])
     D = np.vstack([np.r_[1.0, np.zeros(1 + ne)] - De2, De2])
     Ad, Bd, Cd, Dd = _disc(A2, B2, C, D)
-    return DriveModel(
-        Ts=TS, A=Ad, B=Bd, C=Cd, D=Dd, method="hand-built",
+    return causal(
+        TS, Ad, Bd, Cd, Dd, method="hand-built",
         inputs=[*base.inputs, *feats, ext],
         outputs=base.outputs)
 

@@ -43,13 +43,8 @@ def _regressors(c, a_poly, Ts, ls):
     den, F = rg.tustin_basis(np.asarray(a_poly, float), Ts)
     n = len(a_poly) - 1
     W = np.asarray(c, float)[None, :]
-    r = rg.allpole_filter(den, W - W[:, :1], np.zeros(1), np.zeros(1))[0]
-    N = r.size - n
-    out = np.zeros((N, len(ls)))
-    for c, l in enumerate(ls):           # phi_l[k] = sum_j F[l, j] r[k - j]
-        for j in range(n + 1):
-            out[:, c] += F[l, j] * r[n - j: n - j + N]
-    return out
+    R = rg.allpole_filter(den, W - W[:, :1], np.zeros(1), np.zeros(1))
+    return rg.regressors(R, F[list(ls)], n)[0].T
 
 
 def _follows_command(c, cmd, Ts):

@@ -1,22 +1,24 @@
-"""Validate an exported FMU: fmpy's checks, the reference simulator, and the measured trace.
+"""Validate an exported FMU the way co-simulation masters run it.
 
 ``validate_fmu(fmu_path, trace, model=None)`` runs three comparisons:
 
 1. ``fmpy.validation.validate_fmu``: modelDescription.xml schema, names, ModelStructure...
    (any problem it reports is listed in ``problems``);
-2. the FMU driven through fmpy's ``FMU2Slave``/``FMU3Slave`` with the measured commanded
-   positions against :func:`fdid_fmi.simulate.simulate` on the same trace (the reference,
-   start velocity = commanded velocity of the first two samples, passed to the FMU's
-   ``<axis>_v0``): largest absolute difference of every position / error / velocity / tool
-   output (target <= 1e-9 mm);
+2. the FMU run by ``fmpy.simulate_fmu`` with an input table of the measured commanded positions
+   (``step_size`` = the model's Ts, outputs recorded after every ``doStep``: what fmpy, ecos,
+   libcosim and other masters do), rows aligned by time, against
+   :func:`fdid_fmi.simulate.simulate` on the same trace: largest absolute difference of every
+   position / velocity / tool output at the same time stamps (target <= 1e-9 mm), and of the
+   error output against its definition (below). A non-finite output anywhere is a problem;
 3. the FMU's prediction against the measurement: RMS and maximum of the tracking-error
-   discrepancy (predicted e - measured e) per axis in µm, and for two or more axes the
-   contour-error discrepancy of the first two axes.
+   discrepancy (x_cmd(t_k) - x_FMU(t_k) - measured e(t_k)) per axis in µm, and for two or more
+   axes the contour-error discrepancy of the first two axes.
 
-Timing: at step k the input of sample k is set *before* the outputs of sample k are read
-(the model has direct feed-through), then ``doStep(t_k, Ts)``. fmpy's ``simulate_fmu``
-records outputs after ``doStep`` and before the next input is set, so its row k+1 holds
-what this driver reads at k with the input of k held one more step.
+Timing. The models are causal: an output read after ``doStep(t_k, Ts)`` is the prediction for
+t_k+1, so row k of the master's table is the model at t_k. The error output ``<axis>_e`` is
+x_cmd - x with the command the FMU holds: after ``doStep(t_k, Ts)`` that is the command of t_k,
+so a master's row k+1 holds x_cmd(t_k) - x(t_k+1); a master that sets x_cmd(t_k+1) and reads
+before stepping gets the tracking error of t_k+1 itself.
 """
 from __future__ import annotations
 
@@ -248,6 +250,38 @@ def _model_from_fmu(fmu_path):
     return DriveModel.from_dict(d, source=f"{fmu_path}:resources/model.json")
 
 
+def run_master(fmu_path, t, inputs, outputs, start_values=None, step_size=None):
+    """Run an FMU as co-simulation masters do: ``fmpy.simulate_fmu`` with an input table.
+
+    Parameters
+    ----------
+    t : (N,) time stamps of the input table, s, on the grid t0 + k step_size
+    inputs : dict FMU input name -> (N,) values (held over each step)
+    outputs : list of FMU output names
+    start_values : dict name -> value (parameters such as ``<axis>_v0``)
+    step_size : s; default the FMU's default experiment step
+
+    Returns
+    -------
+    dict name -> (N,) outputs; row k recorded at t[k] (row 0 after initialisation, row k > 0
+    after ``doStep(t[k-1], step_size)``)
+    """
+    from fmpy import read_model_description, simulate_fmu
+    md = read_model_description(str(fmu_path))
+    h = float(step_size if step_size is not None else md.defaultExperiment.stepSize)
+    sig = np.zeros(len(t), dtype=[("time", float)] + [(k, float) for k in inputs])
+    sig["time"] = t
+    for k, v in inputs.items():
+        sig[k] = v
+    res = simulate_fmu(str(fmu_path), start_time=float(t[0]), stop_time=float(t[-1]), step_size=h,
+                       output_interval=h, input=sig, output=list(outputs),
+                       start_values=dict(start_values or {}), validate=False)
+    if len(res) != len(t) or np.max(np.abs(res["time"] - t)) > 0.5 * h:
+        raise InputError(f"fmpy.simulate_fmu recorded {len(res)} rows for {len(t)} input samples: "
+                         f"the FMU does not step at {h:g} s", source=str(fmu_path))
+    return {k: np.asarray(res[k], float) for k in outputs}
+
+
 def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     """Validate an FMU against the reference simulator and a measured trace.
 
@@ -262,8 +296,9 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     start : ``auto`` or ``ramp``
         As in :func:`fdid_fmi.simulate.simulate`: with ``auto`` a record that starts
         accelerating is preceded by the reference's run-up from rest (``simulate.run_up``),
-        fed to the FMU as well (its outputs over the run-up are dropped); otherwise the FMU
-        starts in the steady ramp at the commanded start velocity (``<axis>_v0``).
+        fed to the FMU as well (earlier rows of the input table, dropped from the comparison);
+        otherwise the FMU starts in the steady ramp at the commanded start velocity
+        (``<axis>_v0``).
 
     Returns
     -------
@@ -274,6 +309,7 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     from fmpy.validation import validate_fmu as fmpy_validate
 
     from ..simulate import run_up, simulate
+    from .layout import build_layout
     fmu_path = Path(fmu_path)
     if not fmu_path.is_file():
         raise InputError("FMU file not found", source=str(fmu_path))
@@ -292,57 +328,62 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     if missing:
         raise InputError(f"the trace has no commanded position for axes {missing} of the model "
                          f"(map them with --map)", source=trace.source, column="cmd")
-    if abs(trace.Ts - model.Ts) > 1e-3 * model.Ts:   # the reference simulator's tolerance
+    if abs(trace.Ts - model.Ts) > 1e-9 * model.Ts:
         raise InputError(f"the trace is sampled at {trace.Ts:g} s but the model at {model.Ts:g} s",
                          source=trace.source, column="time")
     if start not in ("auto", "ramp"):
         raise InputError(f"start must be 'auto' or 'ramp', got {start!r}", column="start")
     ref = simulate(model, trace, start=start)
+    Ts = model.Ts
     cmds = {a: np.asarray(trace.cmd(a), float) for a in axes}
-    externals = {}
-    from .layout import build_layout
     lay = build_layout(model)
+    var = {(v.role, v.index): v.name for v in lay.variables}      # names by role (FmuLayout)
+    ak = {a: k for k, a in enumerate(lay.axes)}
+    names = {(role, a): var[(role, ak[a])] for a in axes for role in ("cmd", "pos", "err", "vel", "tool")
+             if (role, ak[a]) in var}
+    # the same start as the reference: a run-up from rest for records that start accelerating
+    # (simulate.run_up, as earlier rows of the table), else the steady ramp at the start velocity
+    R, ext_cmds = run_up(cmds, trace.Ts) if start == "auto" else (0, cmds)
+    table = {names[("cmd", a)]: ext_cmds[a] for a in axes}
     for v in lay.inputs:
         if v.role == "ext":
             p = model.inputs[v.index]
-            externals[v.name] = np.asarray(trace.extra(p.params.get("channel", p.name)), float)
-    names = []
-    for a in axes:
-        names += [f"{a}_x", f"{a}_e", f"{a}_v"] + ([f"{a}_x_tool"] if "tool_position" in ref.axes[a] else [])
-    names = [lay.by_name(n).name for n in names]
-    # the same start as the reference: a run-up from rest for records that start accelerating
-    # (simulate.run_up), else the steady ramp at the commanded start velocity (<axis>_v0)
-    R, ext_cmds = run_up(cmds, trace.Ts) if start == "auto" else (0, cmds)
+            x = np.asarray(trace.extra(p.params.get("channel", p.name)), float)
+            table[v.name] = np.concatenate([np.full(R, x[0]), x])
     if R:
-        drive = ext_cmds
-        drive_ext = {k: np.concatenate([np.full(R, v[0]), v]) for k, v in externals.items()}
         v0 = {a: 0.0 for a in axes}
         res.start = f"run-up from rest over {R} samples (simulate.run_up)"
     else:
-        drive, drive_ext = cmds, externals
-        v0 = {a: (c[1] - c[0]) / trace.Ts for a, c in cmds.items()}
+        v0 = {a: (c[1] - c[0]) / Ts for a, c in cmds.items()}
         res.start = "steady ramp at " + ", ".join(f"{a}_v0 = {v:.6g} mm/s" for a, v in v0.items())
+    t = trace.t[0] + Ts * np.arange(-R, trace.n)          # the nominal grid of the trace
     t0 = time.perf_counter()
-    # the FMU steps at its own Ts (the reference accepts traces sampled within 0.1 % of it)
     try:
-        out = run_fmu(fmu_path, drive, model.Ts, start_velocity=v0, externals=drive_ext, outputs=names)
+        outs = [n for (role, _), n in names.items() if role != "cmd"]
+        out = run_master(fmu_path, t, table, outs, {var[("v0", ak[a])]: v for a, v in v0.items()}, Ts)
+        out = {key: out[n][R:] for key, n in names.items() if key[0] != "cmd"}
     except InputError:
         raise
     except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions (missing binary, FMI error)
-        raise InputError(f"the FMU could not be run through fmpy ({exc}); does it have a binary "
-                         f"for this platform?", source=str(fmu_path)) from None
+        raise InputError(f"the FMU could not be run through fmpy.simulate_fmu ({exc}); does it have "
+                         f"a binary for this platform?", source=str(fmu_path)) from None
     dt = time.perf_counter() - t0
-    out = {k: v[R:] for k, v in out.items()}
     res.fmi_version = _fmi_version(fmu_path)
     res.steps_per_second = (trace.n + R) / dt if dt > 0 else float("nan")
+    for key, v in out.items():
+        bad = ~np.isfinite(v)
+        if bad.any():
+            res.problems.append(f"output '{names[key]}' is not finite from t = "
+                                f"{trace.t[int(np.argmax(bad))]:g} s on")
     dpos, dvel = 0.0, 0.0
     for a in axes:
         r = ref.axes[a]
-        dpos = max(dpos, float(np.max(np.abs(out[f"{a}_x"] - r["position"]))),
-                   float(np.max(np.abs(out[f"{a}_e"] - r["error"]))))
-        if "tool_position" in r:
-            dpos = max(dpos, float(np.max(np.abs(out[f"{a}_x_tool"] - r["tool_position"]))))
-        dvel = max(dvel, float(np.max(np.abs(out[f"{a}_v"] - r["velocity"]))))
+        held = ext_cmds[a][R - 1:-1] if R else np.concatenate([cmds[a][:1], cmds[a][:-1]])
+        dpos = max(dpos, _maxdiff(out[("pos", a)], r["position"]),
+                   _maxdiff(out[("err", a)], held - r["position"]))    # e = held x_cmd - x
+        if ("tool", a) in out:
+            dpos = max(dpos, _maxdiff(out[("tool", a)], r["tool_position"]))
+        dvel = max(dvel, _maxdiff(out[("vel", a)], r["velocity"]))
     res.max_abs_diff_reference_mm = dpos
     res.max_abs_diff_reference_velocity_mm_s = dvel
     if not dpos <= tolerance_mm:
@@ -354,24 +395,33 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
                     f"by 1e-12 mm (friction stick-slip amplifies rounding on this trace), so no "
                     f"implementation can agree to {tolerance_mm:g} mm here")
         res.problems.append(msg)
-    from ..metrics import measured_position
+    _against_measurement(res, model, trace, cmds, out)
+    return res
+
+
+def _maxdiff(a, b):
+    d = np.abs(np.asarray(a) - np.asarray(b))
+    return float(np.max(d)) if np.isfinite(d).all() else float("inf")
+
+
+def _against_measurement(res, model, trace, cmds, out):
+    """Tracking- and contour-error discrepancy of the FMU's positions against the measurement."""
+    from ..metrics import contour_error, measured_position
+    axes = model.axes
     sides = {a: model.position_side(a) for a in axes}
     act = {a: np.asarray(measured_position(trace, a, sides[a]), float) for a in axes
            if trace.has(a, "tool" if sides[a] == "tool" else "act")}
     for a, x in act.items():
-        e_meas = cmds[a] - x
-        d = (out[f"{a}_e"] - e_meas) * 1e3
+        d = ((cmds[a] - out[("pos", a)]) - (cmds[a] - x)) * 1e3
         res.axes[a] = {"rms_um": float(np.sqrt(np.mean(d ** 2))), "max_um": float(np.max(np.abs(d)))}
     if len(act) >= 2:
-        from ..metrics import contour_error
         a, b = list(act)[:2]
         cxy = np.column_stack([cmds[a], cmds[b]])
-        ce_pred = contour_error(cxy, np.column_stack([out[f"{a}_x"], out[f"{b}_x"]]))
+        ce_pred = contour_error(cxy, np.column_stack([out[("pos", a)], out[("pos", b)]]))
         ce_meas = contour_error(cxy, np.column_stack([act[a], act[b]]))
         d = (ce_pred - ce_meas) * 1e3
         res.contour = {"axes": [a, b], "rms_um": float(np.sqrt(np.mean(d ** 2))),
                        "max_um": float(np.max(np.abs(d)))}
-    return res
 
 
 def _sensitivity(model, trace, start):

@@ -378,3 +378,36 @@ double fdid_var_value(FdidState *S, const FdidVar *v) {
     default: return 0.0;
     }
 }
+
+/* ------------------------------------------------------------ a whole record */
+/* Free run over N samples (fdid_fmi.simulate): the same steps a co-simulation master takes
+ * (set the inputs of sample k, read the outputs of sample k, advance), without the FMI layer.
+ * cmd: N x n_axes commanded positions; ext: N x m (only the external-input columns are read).
+ * Y (N x p), U (N x m), V (N x n_axes) receive outputs, applied inputs and axis velocities.
+ * The caller sets level / vtilde / on / v0 before; the state is initialised from sample 0.
+ * Returns the first sample whose outputs are not finite, or -1 when all are. */
+long long fdid_run(FdidState *S, long long N, const double *cmd, const double *ext, double *Y,
+                   double *U, double *V) {
+    const FdidModel *M = S->M;
+    int m = M->m, p = M->p, na = M->n_axes, i, a;
+    long long k, bad = -1;
+    for (k = 0; k < N; k++) {
+        for (a = 0; a < na; a++) S->cmd[a] = cmd[k * na + a];
+        for (i = 0; i < m; i++)
+            if (M->inputs[i].kind == FDID_IN_EXTERNAL) S->ext[i] = ext[k * m + i];
+        if (k == 0) S->f.init_dirty = 1;
+        S->f.out_dirty = 1;
+        fdid_outputs(S);
+        for (i = 0; i < p; i++) {
+            Y[k * p + i] = S->y[i];
+            if (bad < 0 && !fdid_is_finite(S->y[i])) bad = k;
+        }
+        for (i = 0; i < m; i++) U[k * m + i] = S->u[i];
+        for (a = 0; a < na; a++) V[k * na + a] = S->vel[a];
+        fdid_advance(S);
+    }
+    return bad;
+}
+
+size_t fdid_sizeof_state(void) { return sizeof(FdidState); }
+size_t fdid_sizeof_model(void) { return sizeof(FdidModel); }

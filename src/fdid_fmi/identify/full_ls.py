@@ -163,7 +163,9 @@ def identify_full_ls(traces, axis="x", cutoff_hz=None, order=2, v_tilde=None, p_
     en, ci, fi, gi = f"{axis}_error", f"{axis}_cmd", f"{axis}_dnf", f"{axis}_abs_sat"
     b = {(en, ci): np.array([1.0 - b0, a1 - b1, a2 - b2, 0.0]),             # e/x_r = (P - N)/P
          (en, fi): np.array([0.0, 0.0, c, 0.0]), (en, gi): np.array([0.0, 0.0, o, 0.0])}
-    model = assemble(st, Fit(J=0.0, a=a, b=b, rms=None, feasible=True, v_tilde={axis: vt}), Ts)
+    # the continuous model, Tustin-discretised, causal by extrapolating the same-sample command
+    model = assemble(st, Fit(J=0.0, a=a, b=b, rms=None, feasible=True, v_tilde={axis: vt}), Ts,
+                     late="extrapolate")
     model.method = "full-ls"
     model.poles = [complex(r) for r in np.roots(a)]
     model.identification = {

@@ -31,6 +31,7 @@ class Segment:
     pos: dict              # axis -> measured position (mm), drives position features
     cmd: dict              # axis -> commanded position (mm), for features with source "command"
     Z: np.ndarray          # (p, N) measured outputs
+    known: np.ndarray      # (p, N) their same-sample part, not fitted (error outputs: x_r,k - x_r,k-1)
     R: int = 0             # run-up samples prepended to W, vel, pos (not fitted)
 
 
@@ -65,6 +66,7 @@ class LSProblem:
                 raise InputError(f"data ranges have different sample times ({self.Ts} s, {tr.Ts} s)",
                                  source=tr.source, column="time")
         self.n = structure.order
+        self.delay = np.array([ins.delay for ins in structure.inputs])
         self.m = len(structure.inputs)
         self.p = len(structure.outputs)
         self.segments = [self._segment(tr) for tr in traces]
@@ -79,8 +81,8 @@ class LSProblem:
             if not w > 0:
                 raise InputError(f"output '{o.name}' is constant over the data range: nothing to fit",
                                  source=traces[0].source, column=o.name)
-        self.zz = np.sum(Zall ** 2, axis=1)
-        self.Z = Zall
+        self.Z = Zall - np.concatenate([sg.known for sg in self.segments], axis=1)   # LS target
+        self.zz = np.sum(self.Z ** 2, axis=1)
         # per output: which (input, l) columns are estimated / fixed
         self.cols, self.fixed = [], []
         self.allow = {}
@@ -142,9 +144,16 @@ class LSProblem:
                 e = np.asarray(tr.extra(ins.channel), float)
                 W[i] = np.concatenate([np.full(R, e[0]), e])
         Z = np.zeros((self.p, N))
+        known = np.zeros((self.p, N))
         for j, o in enumerate(s.outputs):
             Z[j] = _measured_output(tr, o)
-        return Segment(W=W, wref=wref, dw=dw, vel=vel, pos=pos, cmd=ext, Z=Z, R=R)
+            if o.is_error:
+                # e_k = (x_r,k - x_r,k-1) + [G_e x_r]_(k-1): the known same-sample part is not
+                # fitted (causality, see regressors.py); x_r,-1 from the start ramp / run-up
+                c = ext[o.axis]
+                prev = np.concatenate([[c[0] - (0.0 if R else c[1] - c[0])], c[:-1]])
+                known[j] = (c - prev)[R:]
+        return Segment(W=W, wref=wref, dw=dw, vel=vel, pos=pos, cmd=ext, Z=Z, known=known, R=R)
 
     def fill_nonlinear_inputs(self, sg, v_tilde, override=None):
         """Friction and feature rows of the inputs for the given v_tilde (per axis).
@@ -174,7 +183,7 @@ class LSProblem:
         for k, sg in enumerate(self.segments):
             W = self.fill_nonlinear_inputs(sg, v_tilde, overrides[k] if overrides else None)
             R = rg.allpole_filter(den, W, W[:, 0], sg.dw)
-            Phi = rg.regressors(R, Fu, self.n)[:, :, sg.R:]  # (m, len(used_l), N), run-up dropped
+            Phi = rg.regressors(R, Fu, self.n, self.delay)[:, :, sg.R:]  # (m, len(used_l), N), run-up dropped
             Mt = np.empty((len(self.used), Phi.shape[2]))
             for k, (i, l) in enumerate(self.used):
                 Mt[k] = Phi[i, lpos[l]]

@@ -15,7 +15,7 @@ from scipy.linalg import block_diag
 
 from .. import __version__
 from ..errors import InputError
-from ..model import DriveModel, Port
+from ..model import DriveModel, Port, delayed_input
 from . import regressors as rg
 from .lsfit import LSProblem
 from .search import run_search
@@ -273,32 +273,46 @@ def _with_v_tilde(model, vt):
 
 
 # ------------------------------------------------------------------ assembly
-def assemble(structure: Structure, fit, Ts):
+def assemble(structure: Structure, fit, Ts, late="shift"):
     """Unscaled discrete state space of a fit (Eqn 5.18-5.25) as a DriveModel.
 
     One SIMO block (A0, B0, C0, D0) per input (Eqn 5.22); each output row is the numerator-weighted
     sum of the blocks' regressor outputs (Eqn 5.23). Integrators are appended by shifting the
     numerators (Eqn 5.26-5.29). Derived outputs complete each axis: position = x_r - error (or
     the reverse), so every axis has a position, an error and (through the simulator) a velocity.
+
+    ``late`` says how inputs from outside the drive become causal (DESIGN.md): ``"shift"``, the
+    numerators were fitted on regressors one sample late (``lsfit``, the pole search);
+    ``"extrapolate"``, a continuous model fitted elsewhere (Full LS) keeps its Tustin form and
+    only its same-sample term D u[k] uses the linear extrapolation 2 u[k-1] - u[k-2]
+    (:func:`extrapolate_late_inputs`).
     """
     n = len(fit.a) - 1
     den, F = rg.tustin_basis(fit.a, Ts)
-    A0, B0, C0, D0 = rg.simo_realisation(den, F)
     ins = structure.inputs
     m = len(ins)
-    A = block_diag(*([A0] * m))
-    B = block_diag(*([B0] * m))
+    shift = late == "shift"
+    # delayed blocks: n+1 states and D0 = 0
+    blocks = [rg.simo_realisation(den, F, s.delay if shift else 0) for s in ins]
+    A = block_diag(*[blk[0] for blk in blocks])
+    B = block_diag(*[blk[1] for blk in blocks])
+    start = np.concatenate([[0], np.cumsum([blk[0].shape[0] for blk in blocks])])
     rows_C, rows_D, outs = [], [], []
     cmd_col = {s.axis: i for i, s in enumerate(ins) if s.kind == "command"}
     for o in structure.outputs:
-        c = np.zeros(n * m)
+        c = np.zeros(start[-1])
         d = np.zeros(m)
         for i, s in enumerate(ins):
             b = fit.b[(o.name, s.name)]
             if o.integrators:
                 b = np.concatenate([np.zeros(o.integrators), b[: n + 1 - o.integrators]])   # Eqn 5.29
-            c[i * n:(i + 1) * n] = b @ C0
+            _, _, C0, D0 = blocks[i]
+            c[start[i]:start[i + 1]] = b @ C0
             d[i] = (b @ D0)[0]
+            if shift and o.is_error and s.kind == "command" and s.axis == o.axis:
+                # + x_r,k - x_r,k-1 (lsfit: the known part); x_r,k-1 = den . [r_k-1 .. r_k-1-n]
+                c[start[i]:start[i + 1]] -= den
+                d[i] += 1.0
         rows_C.append(c)
         rows_D.append(d)
         kind = {"tool_error": "other"}.get(o.predicts, o.predicts)
@@ -351,8 +365,38 @@ def assemble(structure: Structure, fit, Ts):
                                  f"measured input '{s.channel}'"))
         else:
             in_ports.append(Port(s.name, "1", "feature", s.axis, dict(s.params), "nonlinear feature"))
-    return DriveModel(Ts=Ts, A=A, B=B, C=np.array(rows_C), D=np.array(rows_D), inputs=in_ports,
-                      outputs=outs)
+    C, D = np.array(rows_C), np.array(rows_D)
+    if not shift:
+        A, B, C, D = extrapolate_late_inputs(A, B, C, D, in_ports, outs)
+    return DriveModel(Ts=Ts, A=A, B=B, C=C, D=D, inputs=in_ports, outputs=outs)
+
+
+def extrapolate_late_inputs(A, B, C, D, inputs, outputs):
+    """Causal form of a Tustin model: D u[k] -> D (2 u[k-1] - u[k-2]) for outside inputs.
+
+    Tustin assumes inputs linear between samples; the same assumption predicts u[k] from the
+    two samples before, which the outputs then use instead of u[k] itself (two registers per
+    such input; the state update keeps the true u[k]). Error outputs keep e[k] = x_r[k] - x[k].
+    """
+    late = [i for i, p in enumerate(inputs) if delayed_input(p.kind, p.params) and np.any(D[:, i])]
+    n = A.shape[0]
+    A2 = np.zeros((n + 2 * len(late),) * 2)
+    A2[:n, :n] = A
+    B2 = np.zeros((A2.shape[0], B.shape[1]))
+    B2[:n] = B
+    C2 = np.hstack([C, np.zeros((C.shape[0], 2 * len(late)))])
+    D2 = D.copy()
+    for j, i in enumerate(late):
+        r1, r2 = n + 2 * j, n + 2 * j + 1           # u[k-1], u[k-2]
+        B2[r1, i] = 1.0
+        A2[r2, r1] = 1.0
+        for o, q in enumerate(outputs):
+            own = q.kind == "error" and inputs[i].kind == "command" and q.axis == inputs[i].axis
+            delta = D[o, i] - (1.0 if own else 0.0)
+            C2[o, r1] += 2.0 * delta
+            C2[o, r2] -= delta
+            D2[o, i] = 1.0 if own else 0.0
+    return A2, B2, C2, D2
 
 
 def tracking_zeros(structure, fit):

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from ..model import delayed_input
 
 INPUT_SOURCES = ("command", "friction", "external", "feature")
 # output kind -> trace role it is measured from (integrators: how many appended to predict it)
@@ -38,6 +39,12 @@ class InputSpec:
     channel: str | None = None
     params: dict = field(default_factory=dict)
     name: str | None = None
+
+    @property
+    def delay(self):
+        """1 for inputs from outside the drive (their regressors are one sample late, see
+        ``model.delayed_input``), 0 for functions of the model's own state."""
+        return int(delayed_input(self.kind, self.params))
 
     def __post_init__(self):
         if self.kind not in INPUT_SOURCES:
@@ -71,6 +78,12 @@ class OutputSpec:
             self.predicts = self.kind
         if self.name is None:
             self.name = f"{self.axis}_{self.kind}"
+
+    @property
+    def is_error(self):
+        """A tracking error x_r - x: it follows its own axis's command in the same sample
+        (e_k = x_r,k - x_k), the only same-sample response a causal model has."""
+        return self.kind in ("error", "tool_error")
 
 
 @dataclass

@@ -1,0 +1,155 @@
+"""Model accuracy on every validation trace of the README tables, for a side-by-side comparison
+of two versions of the identification (issue 8: causal models against the earlier Tustin models).
+
+Free-run discrepancy RMS in µm of the predicted tracking error (virtual drive; tool-side error for
+the flexible axis) or position (EMPS) against the measurement, for the pole search, Full LS and
+quasi-static. Run it in each checkout, then compare:
+
+    .venv/bin/python benchmarks/bench_accuracy.py --label new
+    OTHER/.venv/bin/python benchmarks/bench_accuracy.py --label old --out old.json   (other checkout)
+    .venv/bin/python benchmarks/bench_accuracy.py --compare old.json new.json
+
+Writes benchmarks/results/bench_accuracy_<label>.json (single core: BLAS threads pinned to 1).
+"""
+import os
+
+for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(var, "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from fdid_fmi.identify import (Bounds, identify_full_ls, identify_mimo, identify_quasi_static,  # noqa: E402
+                               identify_siso, mimo_structure)
+from fdid_fmi.metrics import rms  # noqa: E402
+from fdid_fmi.simulate import simulate  # noqa: E402
+from fdid_fmi.virtual import MachineConfig, presets, simulate_machine  # noqa: E402
+from fdid_fmi.virtual import trajectories as tj  # noqa: E402
+
+OUT = Path(__file__).resolve().parent / "results"
+EMPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "emps"
+
+
+def _one(cfg, ax):
+    return MachineConfig(axes=[cfg.axis(ax)], Ts=cfg.Ts)
+
+
+def virtual_data(cfg, ax, n_moves=20):
+    """The traces of tests/test_pole_search_virtual.py: 20 linear moves to train; a diamond,
+    a circle and another move set to validate."""
+    Ts = cfg.Ts
+    one = _one(cfg, ax)
+    train = simulate_machine(one, tj.linear_moves(n_moves=n_moves, axes=(ax,), Ts=Ts, seed=1), seed=1)
+    vals = {"diamond": simulate_machine(cfg, tj.diamond(Ts=Ts), seed=2),
+            "circle": simulate_machine(cfg, tj.circle(Ts=Ts), seed=3),
+            "moves": simulate_machine(one, tj.linear_moves(n_moves=12, axes=(ax,), Ts=Ts, seed=7), seed=4)}
+    return train, vals
+
+
+def err_um(model, tr, ax):
+    return 1e3 * rms(simulate(model, tr).axes[ax]["error"] - tr.error(ax))
+
+
+def case_virtual(name, cfg, ax, pole_search):
+    train, vals = virtual_data(cfg, ax)
+    t0 = time.perf_counter()
+    models = {"pole search": pole_search(train, ax), "Full LS": identify_full_ls(train, ax),
+              "quasi-static": identify_quasi_static(train, [ax])}
+    wall = time.perf_counter() - t0
+    return {f"{name} {ax} {v}": {k: err_um(m, tr, ax) for k, m in models.items()}
+            for v, tr in vals.items()}, wall
+
+
+def case_flexible():
+    cfg = presets.flexible_y()
+    nyq = 0.5 / cfg.Ts
+    train = simulate_machine(_one(cfg, "y"), tj.linear_moves(n_moves=8, axes=("y",), Ts=cfg.Ts, seed=1),
+                             seed=1)
+    vals = {"circle": simulate_machine(cfg, tj.circle(Ts=cfg.Ts), seed=3),
+            "diamond": simulate_machine(cfg, tj.diamond(Ts=cfg.Ts), seed=2)}
+    bounds = Bounds(real_hz=[(0.02, nyq)], omega_hz=[(0.02, nyq), (20.0, 40.0)],
+                    zeta=[(0.01, 4.0), (0.001, 0.5)])
+    t0 = time.perf_counter()
+    m = identify_mimo(train, mimo_structure(("y",), ("velocity", "tool_position"), 1, 2),
+                      bounds=bounds, seed=0, maxiter=40)
+    wall = time.perf_counter() - t0
+    out = {}
+    for v, tr in vals.items():
+        pred = simulate(m, tr).axes["y"]["tool_position"]
+        out[f"flexible y tool {v}"] = {"pole search": 1e3 * rms(pred - tr.get("y", "tool"))}
+    return out, wall
+
+
+def case_emps():
+    from fdid_fmi.io import read_trace
+    if not (EMPS / "DATA_EMPS.mat").is_file():
+        return {}, 0.0
+    train = read_trace(EMPS / "DATA_EMPS.mat")
+    test = read_trace(EMPS / "DATA_EMPS_PULSES.mat").slice(0, 0.34)
+    t0 = time.perf_counter()
+    models = {"pole search": identify_siso(train, "x", integral_action=False),
+              "Full LS": identify_full_ls(train, "x"), "quasi-static": identify_quasi_static(train)}
+    wall = time.perf_counter() - t0
+    out = {}
+    for v, tr in (("train", train), ("pulses before 1st pulse", test)):
+        out[f"EMPS position {v}"] = {k: 1e3 * rms(simulate(m, tr).axes["x"]["position"] - tr.act("x"))
+                                     for k, m in models.items()}
+    return out, wall
+
+
+def run():
+    rows, walls = {}, {}
+    no_ff = presets.deckel_maho_like()
+    ff = presets.with_feedforward()
+    for ax in ("x", "y"):
+        r, walls[f"no feed-forward {ax}"] = case_virtual(
+            "no feed-forward", no_ff, ax, lambda tr, a: identify_siso(tr, a, seed=0))
+        rows.update(r)
+        r, walls[f"feed-forward {ax}"] = case_virtual(
+            "feed-forward", ff, ax,
+            lambda tr, a: identify_mimo(tr, mimo_structure((a,), ("error",), n_real=2, n_complex=1), seed=0))
+        rows.update(r)
+    r, walls["flexible y"] = case_flexible()
+    rows.update(r)
+    r, walls["EMPS"] = case_emps()
+    rows.update(r)
+    return {"discrepancy_um": rows, "identification_wall_s": walls}
+
+
+def compare(old_file, new_file):
+    old, new = (json.loads(Path(f).read_text()) for f in (old_file, new_file))
+    print(f"| trace | model | {old.get('label', 'old')} [µm] | {new.get('label', 'new')} [µm] | ratio |")
+    print("|---|---|---:|---:|---:|")
+    for trace, d in new["discrepancy_um"].items():
+        for model, v in d.items():
+            o = old["discrepancy_um"].get(trace, {}).get(model)
+            ratio = f"{v / o:.2f}" if o else "—"
+            print(f"| {trace} | {model} | {o:.3f} | {v:.3f} | {ratio} |" if o is not None else
+                  f"| {trace} | {model} | — | {v:.3f} | — |")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--label", default="current")
+    ap.add_argument("--out")
+    ap.add_argument("--compare", nargs=2, metavar=("OLD", "NEW"))
+    a = ap.parse_args()
+    if a.compare:
+        compare(*a.compare)
+        return
+    res = {"label": a.label, **run()}
+    out = Path(a.out) if a.out else OUT / f"bench_accuracy_{a.label}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(res, indent=1))
+    print(f"| trace | {' | '.join(['pole search', 'Full LS', 'quasi-static'])} |")
+    print("|---|---:|---:|---:|")
+    for trace, d in res["discrepancy_um"].items():
+        print(f"| {trace} | " + " | ".join(f"{d[k]:.3f}" if k in d else "—"
+                                         for k in ("pole search", "Full LS", "quasi-static")) + " |")
+    print(f"written {out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,199 @@
+"""The compiled simulation core, in process: ``fmu_templates/fdid_core.c`` through ctypes.
+
+The step of a DriveModel is written once, in C; every FMU compiles that file, and the package
+builds it at install time as the extension ``fdid_fmi._kernel`` (pyproject.toml). This module
+turns a DriveModel into the core's ``FdidModel`` (the same :func:`~fdid_fmi.fmu.layout.build_layout`
+the FMU generator uses, so port indices and defaults agree) and runs it:
+
+- :func:`run` a whole record (``fdid_run``: set inputs of sample k, read outputs, advance);
+- :class:`Stepper` one step at a time (the pythonfmu backend).
+
+Both give the doubles an FMU of the same model gives: the same C, compiled with
+``-ffp-contract=off`` (no fused multiply-add), on the same data.
+"""
+from __future__ import annotations
+
+import ctypes as ct
+import functools
+
+import numpy as np
+
+from .errors import FdidError, InputError
+
+_D = ct.POINTER(ct.c_double)
+_I = ct.POINTER(ct.c_int)
+
+
+class _Input(ct.Structure):
+    _fields_ = [("kind", ct.c_int), ("axis", ct.c_int), ("function", ct.c_int),
+                ("source_position", ct.c_int), ("v_tilde", ct.c_double), ("v_s", ct.c_double),
+                ("period_mm", ct.c_double)]
+
+
+class _Model(ct.Structure):
+    _fields_ = [("model_identifier", ct.c_char_p), ("guid", ct.c_char_p), ("Ts", ct.c_double),
+                ("n", ct.c_int), ("m", ct.c_int), ("p", ct.c_int), ("n_axes", ct.c_int),
+                ("A", _D), ("B", _D), ("C", _D), ("D", _D), ("S", _D), ("S2", _D), ("G1", _D),
+                ("inputs", ct.POINTER(_Input)), ("n_fric", ct.c_int),
+                ("fric_input", _I), ("fric_vel_output", _I), ("fric_vel_diff", _I),
+                ("axis_cmd_input", _I), ("axis_pos_output", _I), ("axis_err_output", _I),
+                ("axis_vel_output", _I), ("axis_tool_output", _I),
+                ("axis_level0", _D), ("axis_vtilde0", _D), ("n_vars", ct.c_int), ("vars", ct.c_void_p)]
+
+
+class _Flags(ct.Structure):
+    _fields_ = [("steps", ct.c_longlong), ("init_dirty", ct.c_int), ("out_dirty", ct.c_int),
+                ("started", ct.c_int)]
+
+
+_VIEWS = ("xi", "x_prev", "v_prev", "cmd", "ext", "uref", "yoff", "u", "y", "vel",
+          "level", "vtilde", "on", "v0", "work_n", "work_m")
+
+
+class _State(ct.Structure):
+    _fields_ = [("M", ct.POINTER(_Model)), ("f", _Flags), ("nbuf", ct.c_size_t), ("buf", _D)] + \
+               [(v, _D) for v in _VIEWS]
+
+
+@functools.lru_cache(maxsize=1)
+def _lib():
+    """The core library, with argument types declared and the struct layouts checked."""
+    try:
+        from . import _kernel
+    except ImportError as exc:  # a source tree that was never built
+        raise FdidError("the compiled simulation core fdid_fmi._kernel is missing: install the "
+                        f"package (pip install .), which builds it ({exc})") from None
+    lib = ct.CDLL(_kernel.__file__)
+    sp = ct.POINTER(_State)
+    lib.fdid_buffer_size.restype = ct.c_size_t
+    lib.fdid_buffer_size.argtypes = [ct.POINTER(_Model)]
+    lib.fdid_state_bind.argtypes = [sp, ct.POINTER(_Model), _D]
+    for f in ("fdid_state_defaults", "fdid_initialize", "fdid_outputs", "fdid_advance"):
+        getattr(lib, f).argtypes = [sp]
+    lib.fdid_run.restype = ct.c_longlong
+    lib.fdid_run.argtypes = [sp, ct.c_longlong, _D, _D, _D, _D, _D]
+    lib.fdid_sizeof_state.restype = lib.fdid_sizeof_model.restype = ct.c_size_t
+    if lib.fdid_sizeof_state() != ct.sizeof(_State) or lib.fdid_sizeof_model() != ct.sizeof(_Model):
+        raise FdidError("fdid_fmi._kernel was built from other C sources than this package "
+                        "(struct sizes differ): reinstall the package")
+    return lib
+
+
+def _dptr(a):
+    return a.ctypes.data_as(_D)
+
+
+def _iarr(values):
+    return np.ascontiguousarray(values if len(values) else [0], dtype=np.intc)
+
+
+class CompiledModel:
+    """A DriveModel as the C core's ``FdidModel`` (arrays kept alive with it).
+
+    Parameters
+    ----------
+    model : DriveModel  (checked like an FMU export: ``fmu.layout.check_exportable``)
+    """
+
+    def __init__(self, model):
+        from .fmu.layout import FEATURES, KINDS, build_layout
+        lay = build_layout(model)
+        self.model, self.layout = model, lay
+        S, S2, G1 = model.steady_state_maps()
+        self._keep = [np.ascontiguousarray(x, dtype=float).ravel() if np.size(x) else np.zeros(1)
+                      for x in (model.A, model.B, model.C, model.D, S, S2, G1)]
+        aidx = {a: i for i, a in enumerate(lay.axes)}
+        ins = (_Input * max(1, len(model.inputs)))()
+        for i, p in enumerate(model.inputs):
+            feat = p.kind == "feature"
+            ins[i] = _Input(KINDS.index(p.kind), aidx.get(p.axis, -1),
+                            FEATURES.index(p.params["function"]) if feat else 0,
+                            int(feat and p.params.get("source", "command") == "position"),
+                            float(p.params.get("v_tilde", 1.0)) if feat else 1.0,
+                            float(p.params.get("v_s", 1.0)) if feat else 1.0,
+                            float(p.params.get("period_mm", 1.0)) if feat else 1.0)
+        ints = [_iarr(v) for v in (lay.fric_inputs, lay.fric_vel_output, lay.fric_vel_diff, lay.axis_cmd,
+                                   lay.axis_pos, lay.axis_err, lay.axis_vel, lay.axis_tool)]
+        dbls = [np.ascontiguousarray(v, dtype=float) for v in (lay.axis_level0, lay.axis_vtilde0)]
+        self._keep += [ins, *ints, *dbls]
+        A, B, C, D, S_, S2_, G1_ = (_dptr(x) for x in self._keep[:7])
+        self.c = _Model(b"kernel", b"", float(model.Ts), model.n_states, len(model.inputs),
+                        len(model.outputs), len(lay.axes), A, B, C, D, S_, S2_, G1_, ins,
+                        len(lay.fric_inputs), *(x.ctypes.data_as(_I) for x in ints),
+                        *(_dptr(x) for x in dbls), 0, None)
+
+
+class Stepper:
+    """One instance of the core: set inputs, read outputs, advance (what an FMU does).
+
+    Parameters
+    ----------
+    compiled : CompiledModel
+    """
+
+    def __init__(self, compiled):
+        lib = _lib()
+        self.cm = compiled
+        self._buf = np.zeros(max(1, lib.fdid_buffer_size(ct.byref(compiled.c))))
+        self.s = _State()
+        lib.fdid_state_bind(ct.byref(self.s), ct.byref(compiled.c), _dptr(self._buf))
+        lib.fdid_state_defaults(ct.byref(self.s))
+        na, m, p = len(compiled.layout.axes), len(compiled.model.inputs), len(compiled.model.outputs)
+        v = {name: np.ctypeslib.as_array(getattr(self.s, name), (size,)) for name, size in
+             (("cmd", na), ("ext", max(m, 1)), ("level", na), ("vtilde", na), ("on", na), ("v0", na),
+              ("y", max(p, 1)), ("u", max(m, 1)), ("vel", na))}
+        self.views = v          # numpy views into the C state (writing them sets the inputs)
+
+    def set_parameters(self, params, axes):
+        """``<axis>_friction_on / _friction_level / _v_tilde`` overrides (the FMU parameters)."""
+        for k, a in enumerate(axes):
+            if f"{a}_friction_level" in params:
+                self.views["level"][k] = float(params[f"{a}_friction_level"])
+            if f"{a}_v_tilde" in params:
+                vt = params[f"{a}_v_tilde"]
+                if not (np.isfinite(vt) and vt > 0):
+                    raise InputError(f"v_tilde must be > 0 mm/s, got {vt!r}", column=f"{a}_v_tilde")
+                self.views["vtilde"][k] = float(vt)
+            if f"{a}_friction_on" in params:
+                self.views["on"][k] = 1.0 if params[f"{a}_friction_on"] else 0.0
+
+    def touch(self, initial=False):
+        """Inputs or parameters changed: outputs (and, before the first step, the start) are due."""
+        self.s.f.out_dirty = 1
+        if initial:
+            self.s.f.init_dirty = 1
+
+    def outputs(self):
+        _lib().fdid_outputs(ct.byref(self.s))
+        return self.views["y"]
+
+    def advance(self):
+        _lib().fdid_advance(ct.byref(self.s))
+
+
+def run(compiled, cmds, exts, v0, params=None):
+    """Free run of a record through the C core (``fdid_run``).
+
+    Parameters
+    ----------
+    compiled : CompiledModel
+    cmds : (N, n_axes) commanded positions, mm, in the layout's axis order
+    exts : (N, m) values of the external inputs in their model-input columns (others ignored)
+    v0 : (n_axes,) start velocities, mm/s
+    params : dict, optional, FMU parameter overrides (see :meth:`Stepper.set_parameters`)
+
+    Returns
+    -------
+    Y (N, p) outputs, U (N, m) applied inputs, V (N, n_axes) axis velocities, mm/s
+    """
+    st = Stepper(compiled)
+    axes = compiled.layout.axes
+    st.set_parameters(params or {}, axes)
+    st.views["v0"][:] = v0
+    cmds = np.ascontiguousarray(cmds, dtype=float)
+    N = cmds.shape[0]
+    m, p = len(compiled.model.inputs), len(compiled.model.outputs)
+    exts = np.ascontiguousarray(exts, dtype=float) if m else np.zeros((N, 1))
+    Y, U, V = np.empty((N, max(p, 1))), np.empty((N, max(m, 1))), np.empty((N, len(axes)))
+    _lib().fdid_run(ct.byref(st.s), N, _dptr(cmds), _dptr(exts), _dptr(Y), _dptr(U), _dptr(V))
+    return Y[:, :p], U[:, :m], V
