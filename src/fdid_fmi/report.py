@@ -167,3 +167,163 @@ def decimate(x, n_max=4000):
     x = np.asarray(x)
     k = max(1, int(np.ceil(x.size / n_max)))
     return x[::k]
+
+
+def add_model_section(rep, model, fmu=None, validation=None, heading="The identified model"):
+    """Add what an engineer looks for first: the identified model itself.
+
+    Sample time, structure (states, inputs, outputs, method), continuous poles in Hz with their
+    damping, friction parameters, training fit, a Bode plot (command -> tracking error and
+    position per axis) and a pole-zero map of the linear part from python-control
+    (:meth:`~fdid_fmi.model.DriveModel.to_control`), and, when given, the FMU's variables and
+    its validation status.
+
+    Parameters
+    ----------
+    rep : Report
+    model : DriveModel or QuasiStaticModel
+    fmu : path of the exported FMU, optional
+    validation : dict, optional   e.g. ``ValidationResult.to_dict()`` (``problems``,
+        ``max_abs_diff_reference_mm``, per-axis discrepancy)
+    """
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from .model import QuasiStaticModel
+    rep.add_heading(heading)
+    if isinstance(model, QuasiStaticModel):
+        rows = [{"axis": a, "K_vel [ms]": g["K_vel"] * 1e3, "K_acc [ms^2]": g["K_acc"] * 1e6,
+                 "K_jerk [ms^3]": g["K_jerk"] * 1e9} for a, g in model.gains.items()]
+        rep.add_text(f"Quasi-static model (thesis Eqn 3.4), Ts = {model.Ts * 1e3:.4g} ms: the tracking "
+                     "error is predicted as K_vel times the commanded velocity plus K_acc times the "
+                     "acceleration plus K_jerk times the jerk. K_vel is the lag in time (1/Kp for a "
+                     "P position loop).")
+        rep.add_table("model_gains", rows, caption="quasi-static gains per axis")
+        return
+    ins = ", ".join(f"{p.name} [{p.unit}] ({p.kind})" for p in model.inputs)
+    outs = ", ".join(f"{p.name} [{p.unit}] ({p.kind})" for p in model.outputs)
+    rep.add_text(
+        f"Method: {model.method or 'state space'}; sample time Ts = {model.Ts * 1e3:.6g} ms; "
+        f"{model.n_states} states; inputs: {ins}; outputs: {outs}. The linear part is a discrete "
+        "state space (A, B, C, D) at Ts; the friction inputs close a loop around it through the "
+        "model's own velocity (d = L sat(v / v_tilde), solved exactly at each step). Poles are the "
+        "continuous closed-loop poles the search found: their frequency says how fast the axis "
+        "answers, the damping ratio how much it rings (1 = no overshoot, small = a resonance).")
+    rows = []
+    for p in model.poles:
+        w = abs(p)
+        rows.append({"pole [rad/s]": f"{p.real:.4g}{p.imag:+.4g}j" if p.imag else f"{p.real:.4g}",
+                     "frequency [Hz]": w / (2 * np.pi),
+                     "damping ratio [-]": (-p.real / w) if w > 0 else float("nan"),
+                     "time constant [ms]": (-1e3 / p.real) if p.real < 0 else float("inf")})
+    if rows:
+        rep.add_table("model_poles", rows, caption="continuous poles of the identified model")
+    fr = [{"input": p.name, "axis": p.axis, "v_tilde [mm/s]": p.params.get("v_tilde", float("nan")),
+           "level L [-]": p.params.get("level", 1.0)} for p in model.inputs if p.kind == "friction"]
+    if fr:
+        rep.add_table("model_friction", fr, caption="friction: normalised Coulomb input d = L sat(v / v_tilde) "
+                      "(Eqn 4.12-4.13); its force scale is in the numerator (d0) of each output")
+    fit = _flatten_metrics(model.metrics)
+    if fit:
+        rep.add_table("model_fit", [{"figure": k, "value": v} for k, v in fit.items()],
+                      caption="training fit as the identification recorded it (RMS figures in mm, times in s)")
+    if model.effects:
+        rep.add_table("model_effects", [{"kind": e.get("kind", "?"), "axis": e.get("axis", ""),
+                                         "parameters": ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
+                                                                 for k, v in e.items() if k not in ("kind", "axis"))}
+                                        for e in model.effects], caption="effects added by diagnosis")
+    # Bode plot and pole-zero map from python-control
+    try:
+        sys_ = model.to_control()
+    except Exception as exc:  # noqa: BLE001 - the report still shows the tables
+        rep.add_text(f"No Bode plot: python-control could not take the model ({exc}).")
+        sys_ = None
+    if sys_ is not None:
+        import control
+        f_hz = np.logspace(-1, np.log10(0.45 / model.Ts), 300)
+        w = 2 * np.pi * f_hz
+        fig, (am, ph) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+        data = {"f_hz": f_hz}
+        for ax in model.axes:
+            i = model.input_index("command", ax)
+            for kind in ("error", "position"):
+                o = model.output_index(kind, ax)
+                if o is None:
+                    continue
+                resp = control.frequency_response(sys_[o, i], w)
+                H = np.squeeze(resp.complex)
+                mag = 20 * np.log10(np.maximum(np.abs(H), 1e-300))
+                phase = np.degrees(np.unwrap(np.angle(H)))
+                lab = f"{ax}: {model.inputs[i].name} -> {model.outputs[o].name}"
+                am.semilogx(f_hz, mag, label=lab)
+                ph.semilogx(f_hz, phase, label=lab)
+                data[f"{model.outputs[o].name}_mag_db"] = mag
+                data[f"{model.outputs[o].name}_phase_deg"] = phase
+        am.set_ylabel("magnitude [dB]")
+        ph.set_ylabel("phase [deg]")
+        ph.set_xlabel("frequency [Hz]")
+        am.grid(alpha=0.3, which="both")
+        ph.grid(alpha=0.3, which="both")
+        am.legend(fontsize=7)
+        rep.add_figure("model_bode", fig, data=data,
+                       caption="Bode plot of the linear part (python-control, discrete at Ts): commanded "
+                               "position to tracking error and to position per axis; friction not included")
+        poles = sys_.poles()
+        try:
+            zeros = sys_.zeros()
+        except Exception:  # noqa: BLE001 - MIMO zeros need slycot; show poles only
+            zeros = np.array([])
+        fig, ax2 = plt.subplots(figsize=(5.5, 5.5))
+        th = np.linspace(0, 2 * np.pi, 400)
+        ax2.plot(np.cos(th), np.sin(th), "k:", lw=0.8)
+        ax2.plot(poles.real, poles.imag, "x", ms=9, label="poles")
+        if zeros.size:
+            ax2.plot(zeros.real, zeros.imag, "o", mfc="none", ms=8, label="zeros")
+        ax2.set_xlabel("Re z [-]")
+        ax2.set_ylabel("Im z [-]")
+        ax2.set_aspect("equal")
+        ax2.legend(fontsize=8)
+        ax2.grid(alpha=0.3)
+        rep.add_figure("model_pzmap", fig, data={"poles_re": poles.real, "poles_im": poles.imag,
+                                                 "zeros_re": np.real(zeros), "zeros_im": np.imag(zeros)},
+                       caption="pole-zero map in the z plane (python-control; unit circle dotted: inside = stable)")
+    if fmu is not None:
+        _fmu_variables(rep, fmu)
+    if validation is not None:
+        probs = validation.get("problems", [])
+        diff = validation.get("max_abs_diff_reference_mm")
+        rep.add_text("FMU validation: " + ("no problems" if not probs else f"{len(probs)} problem(s): "
+                                           + "; ".join(map(str, probs[:5])))
+                     + (f"; largest |FMU - reference simulator| = {diff:.3g} mm" if diff is not None else "")
+                     + ". The FMU is the model compiled to C; it must reproduce the reference simulator.")
+
+
+def _flatten_metrics(m, prefix=""):
+    out = {}
+    if isinstance(m, dict):
+        for k, v in m.items():
+            out.update(_flatten_metrics(v, f"{prefix}{k} / " if prefix or k else ""))
+    elif isinstance(m, list):
+        for i, v in enumerate(m):
+            out.update(_flatten_metrics(v, f"{prefix}{i} / "))
+    elif isinstance(m, (int, float, np.floating)) and not isinstance(m, bool):
+        out[prefix.rstrip(" /")] = float(m)
+    return dict(list(out.items())[:40])
+
+
+def _fmu_variables(rep, fmu):
+    try:
+        from fmpy import read_model_description
+        md = read_model_description(str(fmu))
+    except Exception as exc:  # noqa: BLE001
+        rep.add_text(f"FMU {fmu}: its model description could not be read ({exc}).")
+        return
+    rows = [{"name": v.name, "causality": v.causality, "variability": v.variability,
+             "type": v.type, "unit": getattr(v, "unit", "") or "", "start": v.start if v.start is not None else "",
+             "description": v.description or ""} for v in md.modelVariables]
+    ex = md.defaultExperiment
+    rep.add_text(f"FMU {Path(str(fmu)).name}: FMI {md.fmiVersion} co-simulation, model identifier "
+                 f"{md.coSimulation.modelIdentifier if md.coSimulation else '?'}"
+                 + (f", step size {ex.stepSize} s" if ex is not None and ex.stepSize else "") + ".")
+    rep.add_table("fmu_variables", rows, caption="FMU variables (inputs: commanded positions; outputs: "
+                  "predicted position, tracking error, ...; parameters: friction level, v_tilde, ...)")

@@ -350,8 +350,8 @@ def _block(words, st, pos, source, row, raw, index, ignored):
                      f_word=st["f_word"])
     if inverse:
         if "F" not in vals:
-            raise _err(f"inverse-time (G93) block without F: every G1/G2/G3 needs its own F "
-                       f"(1/minutes)", source, row)
+            raise _err("inverse-time (G93) block without F: every G1/G2/G3 needs its own F "
+                       "(1/minutes)", source, row)
         block_time = 60.0 / vals["F"]
     elif st["feed"] is None:
         raise _err(f"no feed rate: G{motion} needs an F word (none programmed yet)", source, row)
