@@ -91,6 +91,16 @@ class _Clocked:
         return out
 
 
+def _check_sees_motion(rec, x_lp, lowpass_hz):
+    """One line when a sensor saw no motion: its low-passed signal is at its noise level."""
+    dyn = float(np.max(np.std(x_lp, axis=0)))
+    band = float(np.max(noise_std(rec.data))) * np.sqrt(min(1.0, 2.0 * lowpass_hz / rec.rate_hz))
+    if not dyn > 5.0 * band:
+        raise InputError(f"{rec.kind.replace('_', ' ')} '{rec.name}': the sensor record is at rest "
+                         f"throughout (below {lowpass_hz:g} Hz it holds only noise): it did not see "
+                         f"the moves, so nothing can be aligned", source=rec.source, column="time")
+
+
 def _timing_estimates(mapping, sigma, info, rho, what):
     a, b = mapping
     drift = 1.0 / b - 1.0
@@ -139,6 +149,7 @@ def _align_accelerometer(rec: SensorRecord, t, ref, opts, given):
     Ts_s = 1.0 / rec.rate_hz
     f = rec.data
     f_lp = lowpass(f, Ts_s, opts["lowpass_hz"])
+    _check_sees_motion(rec, f_lp, opts["lowpass_hz"])
     jerk = np.gradient(f_lp, Ts_s, axis=0)
     env_s = np.linalg.norm(jerk, axis=1)
     env_r = np.sqrt(sum(r["j"] ** 2 for r in ref.values()))
@@ -262,6 +273,7 @@ def _align_grid(rec: SensorRecord, t, ref, opts):
     Ts_s = 1.0 / rec.rate_hz
     P = rec.data
     p_lp = lowpass(P, Ts_s, opts["lowpass_hz"])
+    _check_sees_motion(rec, p_lp, opts["lowpass_hz"])
     env_s = np.linalg.norm(np.gradient(p_lp, Ts_s, axis=0), axis=1)
     have = [a for a in rec.axes if a in ref]
     if not have:

@@ -27,7 +27,7 @@ from ..errors import InputError
 
 __all__ = ["coarse_offset", "window_lags", "fit_clock", "MIN_CORRELATION"]
 
-MIN_CORRELATION = 0.3  # normalised envelope correlation below which no common motion is found
+MIN_CORRELATION = 0.6  # normalised envelope correlation below which no common motion is found
 
 
 def coarse_offset(t, ref_env, tau, sens_env, max_offset_s=None, source=None, what="sensor"):

@@ -74,6 +74,8 @@ class AccelerometerTruth:
     noise : float              white noise per sample and axis, mm/s^2 RMS
     unit : str                 unit written to the file (``m_s2``, ``g``, ``mm_s2``)
     tail_s : float             the record runs this long past the controller's end, s
+    duration_s : float or None the record's length on the controller's clock, s (default: from
+                               ``start_s`` to the controller's end + ``tail_s``)
     """
 
     name: str = "acc_tool"
@@ -88,6 +90,7 @@ class AccelerometerTruth:
     noise: float = 50.0
     unit: str = "m_s2"
     tail_s: float = 0.6
+    duration_s: float | None = None
 
     @property
     def rotation(self) -> Rotation:
@@ -104,7 +107,7 @@ class GridEncoderTruth:
     axes : tuple of str        the two machine axes of the plate, default (x, y)
     angle_deg : float          plate rotation about machine z (plate -> machine), deg
     offset_mm : (2,) float     plate origin in machine coordinates, mm
-    rate_hz, start_s, drift_ppm, tail_s : as :class:`AccelerometerTruth`
+    rate_hz, start_s, drift_ppm, tail_s, duration_s : as :class:`AccelerometerTruth`
     noise : float              white noise per sample and axis, mm RMS
     unit : str                 ``um`` or ``mm``
     """
@@ -119,6 +122,7 @@ class GridEncoderTruth:
     noise: float = 5e-5
     unit: str = "um"
     tail_s: float = 0.4
+    duration_s: float | None = None
 
 
 @dataclass
@@ -171,7 +175,11 @@ def tool_motion(trace: Trace) -> ToolMotion:
 
 def _clock(truth, t_ctrl_end, rng_unused=None):
     """Nominal sensor times tau_k = k / rate and their true controller times (s)."""
-    span = (t_ctrl_end + truth.tail_s - truth.start_s) * (1 + truth.drift_ppm * 1e-6)
+    length = truth.duration_s if truth.duration_s is not None else t_ctrl_end + truth.tail_s - truth.start_s
+    if not length > 0:
+        raise InputError(f"sensor '{truth.name}' would record nothing: it starts at {truth.start_s} s, "
+                         f"after the controller's end {t_ctrl_end} s; give duration_s", column="start_s")
+    span = length * (1 + truth.drift_ppm * 1e-6)
     n = int(np.floor(span * truth.rate_hz)) + 1
     tau = np.arange(n) / truth.rate_hz
     t_true = truth.start_s + tau / (1 + truth.drift_ppm * 1e-6)

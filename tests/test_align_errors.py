@@ -1,0 +1,138 @@
+"""fdid align: what cannot be estimated is said in one line; bad sensor files are refused clearly;
+the command line end to end."""
+import dataclasses
+
+import numpy as np
+import pytest
+
+from fdid_fmi.align import align, read_accelerometer, read_grid_encoder
+from fdid_fmi.cli import main
+from fdid_fmi.errors import InputError
+from fdid_fmi.io import read_trace
+from fdid_fmi.virtual import MachineConfig, presets, simulate_machine
+from fdid_fmi.virtual import trajectories as tj
+from fdid_fmi.virtual.sensors import AccelerometerTruth, GridEncoderTruth, write_raw_run
+
+CFG = presets.flexible_y()
+
+
+@pytest.fixture(scope="module")
+def short(tmp_path_factory):
+    """A 4.6 s two-axis run with the default sensors, and the simulated trace."""
+    sim = simulate_machine(CFG, tj.linear_moves(n_moves=8, axes=("x", "y"), Ts=CFG.Ts, seed=4,
+                                                d_max=20.0), seed=4)
+    return sim, write_raw_run(sim, tmp_path_factory.mktemp("short"))
+
+
+def _ctrl(run):
+    return read_trace(run["controller"])
+
+
+def test_sensor_after_the_controller_record_is_refused(short, tmp_path):
+    sim, _ = short
+    late = write_raw_run(sim, tmp_path, accelerometers=[dataclasses.replace(AccelerometerTruth(),
+                                                                            start_s=30.0, duration_s=5.0)],
+                         grid_encoders=[])
+    with pytest.raises(InputError) as ei:
+        align(_ctrl(late), [read_accelerometer(late["sensors"]["acc_tool"])])
+    msg = str(ei.value)
+    assert "acc_tool" in msg and "at rest throughout" in msg and "\n" not in msg
+
+
+def test_sensor_of_another_run_has_no_common_motion(short, tmp_path):
+    sim, run = short
+    other = simulate_machine(CFG, tj.circle(radius=5.0, Ts=CFG.Ts), seed=9)
+    o = write_raw_run(other, tmp_path, accelerometers=[], grid_encoders=[GridEncoderTruth()])
+    with pytest.raises(InputError) as ei:
+        align(_ctrl(run), [read_grid_encoder(o["sensors"]["kgm"])])
+    assert "no common motion" in str(ei.value)
+
+
+def test_partial_overlap_is_cropped(short, tmp_path):
+    sim, _ = short
+    late = write_raw_run(sim, tmp_path, accelerometers=[],
+                         grid_encoders=[dataclasses.replace(GridEncoderTruth(), start_s=1.2)])
+    res = align(_ctrl(late), [read_grid_encoder(late["sensors"]["kgm"])])
+    assert res.trace.t[0] >= 1.2 and res.trace.t[-1] == pytest.approx(sim.t[-1], abs=1e-9)
+    assert abs(res.sensor("kgm").get("time_offset").value - 1.2) < CFG.Ts
+
+
+def test_drift_without_spread_motion_is_reported_missing(tmp_path):
+    one = MachineConfig(axes=[CFG.axis("x")], Ts=CFG.Ts)
+    sim = simulate_machine(one, tj.point_to_point(0.0, 30.0, Ts=CFG.Ts, dwell=0.15, axis="x"), seed=1)
+    run = write_raw_run(sim, tmp_path, accelerometers=[], grid_encoders=[GridEncoderTruth()])
+    res = align(_ctrl(run), [read_grid_encoder(run["sensors"]["kgm"])], window_s=1.0)
+    lines = [m for m in res.missing if "clock drift not estimable" in m]
+    assert len(lines) == 1 and "kgm" in lines[0]
+    assert res.sensor("kgm").get("clock_drift").value == 0.0
+    assert abs(res.sensor("kgm").get("time_offset").value - GridEncoderTruth().start_s) < CFG.Ts
+
+
+def test_sensor_axes_not_in_the_controller(short):
+    _, run = short
+    with pytest.raises(InputError, match="none of which is in the controller trace"):
+        align(_ctrl(run), [read_accelerometer(run["sensors"]["acc_tool"], axes=("z",))])
+
+
+def _write(path, text):
+    path.write_text(text)
+    return path
+
+
+def test_reader_errors(tmp_path):
+    t = np.arange(40) * 2e-4
+    rows = "\n".join(f"{v:.4f},{v:.3f},0.1,9.8" for v in t)
+    with pytest.raises(InputError, match=r"column 'ax'.*acceleration unit"):
+        read_accelerometer(_write(tmp_path / "a.csv", "t_s,ax,ay,az\n" + rows))
+    assert read_accelerometer(_write(tmp_path / "b.csv", "t_s,ax,ay,az\n" + rows),
+                              unit="m_s2").data[0, 2] == pytest.approx(9800.0)
+    with pytest.raises(InputError, match="expected 3 accelerometer columns besides time, found 4"):
+        read_accelerometer(_write(tmp_path / "c.csv", "t_s,ax_g,ay_g,az_g,temp_C\n" +
+                                  "\n".join(f"{v:.4f},0,0,1,20" for v in t)))
+    bad = rows.splitlines()
+    bad[7] = bad[5]
+    with pytest.raises(InputError, match=r"row 9.*not strictly increasing"):
+        read_accelerometer(_write(tmp_path / "d.csv", "t_s,ax_g,ay_g,az_g\n" + "\n".join(bad)))
+    with pytest.raises(InputError, match=r"column 'kgm_y_um', row 3.*'x' is not a number"):
+        read_grid_encoder(_write(tmp_path / "e.csv", "t_s,kgm_x_um,kgm_y_um\n0,1,1\n0.001,1,x\n"))
+    with pytest.raises(InputError, match="no column 'bz'"):
+        read_accelerometer(_write(tmp_path / "f.csv", "t_s,ax_g,ay_g,az_g\n" + rows), columns=["ax_g", "ay_g", "bz"])
+
+
+def test_cli_end_to_end(short, tmp_path, capsys):
+    _, run = short
+    out, js = tmp_path / "aligned.csv", tmp_path / "al.json"
+    rc = main(["align", str(run["controller"]), "--acc", str(run["sensors"]["acc_tool"]), "axes=x,y",
+               "--kgm", str(run["sensors"]["kgm"]), "-o", str(out), "--json", str(js)])
+    assert rc == 0
+    printed = capsys.readouterr().out
+    assert "| acc_tool | orientation | alpha |" in printed and "aligned trace:" in printed
+    tr = read_trace(out)
+    assert all(tr.has(a, r) for a in "xy" for r in ("cmd", "act", "tool", "acc"))
+    truth = run["truth"]["accelerometers"]["acc_tool"]
+    import json
+    d = json.loads(js.read_text())
+    alpha = [e for s in d["sensors"] if s["name"] == "acc_tool" for e in s["estimates"]
+             if e["name"] == "alpha"][0]
+    assert abs(alpha["value"] - truth["alpha_deg"]) < 0.3
+    # the calibration's orientation reused
+    rc = main(["align", str(run["controller"]), "--acc", str(run["sensors"]["acc_tool"]),
+               "--orientation", str(js), "-o", str(tmp_path / "again.csv")])
+    again = capsys.readouterr().out
+    assert rc == 0 and "| acc_tool | orientation | alpha |" in again and "missing:" not in again
+
+
+@pytest.mark.parametrize("argv_tail, expected", [
+    (["--acc", "ACC", "bogus=1"], "unknown setting 'bogus'"),
+    (["--acc", "ACC", "ACC"], "exactly one file per --acc"),
+    (["--acc", "ACC", "--orientation", "CTRL"], "not valid JSON"),
+    ([], "give at least one sensor"),
+])
+def test_cli_errors_are_one_line(short, tmp_path, capsys, argv_tail, expected):
+    _, run = short
+    tail = [str(run["sensors"]["acc_tool"]) if a == "ACC" else str(run["controller"]) if a == "CTRL" else a
+            for a in argv_tail]
+    rc = main(["align", str(run["controller"]), "-o", str(tmp_path / "o.csv")] + tail)
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and expected in err and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "o.csv").exists()
