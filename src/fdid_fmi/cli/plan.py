@@ -1,0 +1,174 @@
+"""``fdid plan``: from an NC program to predicted tracking and contour errors, and feeds that
+keep them in tolerance.
+
+    fdid plan part.nc --model model.json --limits 100,2000,1e5 --tol 0.02 --optimize \\
+        --report plan.html --json plan.json -o part_opt.nc
+
+The program is interpolated at the model's Ts (exact stop at every block end, jerk-limited
+S-curves within the axis limits; see :mod:`fdid_fmi.plan.interpolate`), or the controller's own
+setpoints are taken from ``--commands TRACE``; the twin (``--model`` or ``--fmu``) predicts
+the errors per block.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from ..errors import InputError
+
+
+def register(sub):
+    p = sub.add_parser("plan", help="NC program -> predicted tracking/contour error per block -> feeds within --tol",
+                       description=__doc__.split("\n\n")[0])
+    p.add_argument("program", help="ISO / RS-274 part program (.nc)")
+    tw = p.add_mutually_exclusive_group(required=True)
+    tw.add_argument("--model", help="identified model JSON (DriveModel)")
+    tw.add_argument("--fmu", help="exported drive FMU (run through fmpy.simulate_fmu)")
+    p.add_argument("--limits", action="append", default=[], metavar="[AXIS=]V,A,J",
+                   help="axis limits: velocity [mm/s], acceleration [mm/s^2], jerk [mm/s^3]; without AXIS= for all axes")
+    p.add_argument("--limits-from", default=None, metavar="TRACE",
+                   help="estimate the limits from a recorded trace of the same machine")
+    p.add_argument("--commands", default=None, metavar="TRACE",
+                   help="use the controller's interpolated setpoints (cmd channels of TRACE) instead of interpolating")
+    p.add_argument("--tol", type=float, default=None, help="contour tolerance [mm]: blocks above it are flagged")
+    p.add_argument("--optimize", action="store_true", help="find per-block feeds within --tol (needs --tol)")
+    p.add_argument("-o", "--output", default=None, help="write the optimised NC program here")
+    p.add_argument("--report", default=None, help="HTML report")
+    p.add_argument("--json", default=None, help="JSON with every table and figure's data")
+    p.add_argument("--csv", default=None, help="commanded and predicted positions, errors per sample")
+    p.add_argument("--start", default="0,0,0", help="position before the first block, x,y,z [mm]")
+    from .mapping import add_trace_arguments
+    add_trace_arguments(p)
+    p.set_defaults(func=run)
+
+
+def _limits(args, axes_needed):
+    from ..plan.interpolate import limits_from_trace, parse_limits
+    from .mapping import trace_from_args
+    lim = {}
+    if args.limits_from:
+        tr = trace_from_args(args.limits_from, args)
+        lim.update(limits_from_trace(tr))
+    for text in args.limits:
+        lim = parse_limits(text, lim)
+    missing = [a for a in axes_needed if a not in lim]
+    if missing:
+        raise InputError(f"no limits for axes {missing}: give --limits V,A,J (mm/s, mm/s^2, mm/s^3) "
+                         f"or --limits-from TRACE", column="--limits")
+    return lim
+
+
+def run(args):
+    import numpy as np
+    from ..model import DriveModel, load_model
+    from ..plan import read_program
+    from ..plan.interpolate import commands_from_trace, interpolate
+    from ..plan.predict import fmu_axes, model_from_fmu, predict
+    from ..plan.reporting import plan_report
+
+    outs = [o for o in (args.output, args.report, args.json, args.csv) if o]
+    try:
+        from ..outputs import check_output
+        for o in outs:
+            check_output(o, inputs=[args.program, args.model or args.fmu])
+    except ImportError:  # pragma: no cover - older tree
+        pass
+    if args.optimize and args.tol is None:
+        raise InputError("--optimize needs --tol (contour tolerance in mm)", column="--tol")
+    try:
+        start = [float(v) for v in args.start.split(",")]
+    except ValueError:
+        raise InputError(f"'{args.start}' is not x,y,z", column="--start") from None
+    prog = read_program(args.program, start=start)
+    if args.model:
+        model = load_model(args.model)
+        if not isinstance(model, DriveModel):
+            raise InputError("plan needs a state-space model (identify with pole-search, mimo or full-ls)",
+                             source=args.model)
+        Ts, axes, fmu = model.Ts, model.axes, None
+    else:
+        fmu = args.fmu
+        axes, step = fmu_axes(fmu)
+        model = model_from_fmu(fmu)
+        Ts = model.Ts
+    bad = [a for a in axes if a not in ("x", "y", "z")]
+    if bad:
+        raise InputError(f"the model's axes {bad} are not x, y or z (the program's axes)", column="axes")
+    print(f"fdid plan: {args.program}: {len(prog.blocks)} blocks, axes moved {prog.axes_used}, "
+          f"twin {'FMU ' + str(fmu) if fmu else 'model ' + args.model} (axes {axes}, Ts {Ts * 1e3:.4g} ms)")
+    if prog.ignored:
+        print(f"  passed over: {', '.join(f'line {r}: {w}' for r, w in prog.ignored[:20])}"
+              + (" ..." if len(prog.ignored) > 20 else ""))
+    if args.commands:
+        from .mapping import trace_from_args
+        tr = trace_from_args(args.commands, args)
+        if abs(tr.Ts - Ts) > 1e-3 * Ts:
+            tr = tr.resample(Ts)
+        ip = commands_from_trace(prog, tr, axes)
+        lim = None
+    else:
+        lim = _limits(args, prog.axes_used)
+        ip = interpolate(prog, lim, Ts, progress=True)
+    twin = {"model": model} if fmu is None else {"fmu": fmu}
+    pr = predict(ip, tol_mm=args.tol, program=prog, **twin)
+    s = pr.summary
+    print(f"  cycle time {s['cycle_time_s']:.3f} s; contour error RMS {s['contour_rms_um']:.2f} µm, "
+          f"MAX {s['contour_max_um']:.2f} µm; "
+          + "; ".join(f"{a}: tracking MAX {v['error_max_um']:.1f} µm" for a, v in s["axes"].items()))
+    print("\n| block | line | kind | feed [mm/min] | time [s] | contour RMS [µm] | contour MAX [µm] | flag |")
+    print("|---:|---:|---|---:|---:|---:|---:|---|")
+    for r in pr.blocks:
+        print(f"| {r['block']} | {r['line']} | {r['kind']} | {r['feed_mm_min']:.0f} | {r['duration_s']:.3f} | "
+              f"{r['contour_rms_um']:.2f} | {r['contour_max_um']:.2f} | {'OVER' if r['flag'] else ''} |")
+    fpl = None
+    if args.optimize:
+        if lim is None:
+            raise InputError("--optimize re-interpolates the program: give --limits, not --commands",
+                             column="--optimize")
+        from ..plan.optimize import optimize_feeds
+        from ..plan.ncprogram import write_program
+        fpl = optimize_feeds(prog, lim, Ts, args.tol, progress=True, before=pr, **twin)
+        print(f"\nfeed optimisation (tol {args.tol * 1e3:.3g} µm): cycle time {fpl.before.interp.cycle_time:.3f} s "
+              f"(programmed) -> {fpl.after.interp.cycle_time:.3f} s (per-block feeds, contour MAX "
+              f"{fpl.after.summary['contour_max_um']:.2f} µm); uniform override "
+              f"{100 * fpl.uniform_override:.1f} %: {fpl.uniform_cycle_time_s:.3f} s"
+              + ("" if fpl.reachable else "; NOT every block reachable by the feed alone"))
+        print("| block | line | feed [mm/min] | new feed [mm/min] | contour MAX before / after [µm] | time before / after [s] |")
+        print("|---:|---:|---:|---:|---:|---:|")
+        for r in fpl.rows:
+            print(f"| {r['block']} | {r['line']} | {r['feed_mm_min']:.0f} | {r['new_feed_mm_min']:.0f} | "
+                  f"{r['contour_max_before_um']:.2f} / {r['contour_max_after_um']:.2f} | "
+                  f"{r['time_before_s']:.3f} / {r['time_after_s']:.3f} |")
+        if args.output:
+            text = write_program(prog, fpl.new_feeds_mm_s(prog),
+                                 header=f"feeds optimised by fdid plan for a contour tolerance of {args.tol:g} mm")
+            _write_text(args.output, text)
+            print(f"optimised program: {args.output}")
+    elif args.output:
+        raise InputError("-o writes the optimised program: add --optimize --tol TOL", column="-o")
+    if args.report or args.json:
+        rep = plan_report(prog, pr, model=model, tol_mm=args.tol, feed_plan=fpl, fmu=fmu)
+        if args.report:
+            _write_text(args.report, rep.html())
+            print(f"report: {args.report}")
+        if args.json:
+            _write_text(args.json, json.dumps(rep.to_dict(), indent=1))
+    if args.csv:
+        cols = ["t_s"] + [f"{a}_cmd_mm" for a in axes] + [f"{a}_pred_mm" for a in axes] + \
+               [f"{a}_e_pred_mm" for a in axes] + ["contour_mm", "block"]
+        data = np.column_stack([ip.t] + [ip.positions[a] for a in axes] + [pr.position[a] for a in axes]
+                               + [pr.error[a] for a in axes] + [pr.contour, ip.block_of_sample + 1])
+        import io
+        buf = io.StringIO()
+        np.savetxt(buf, data, delimiter=",", header=",".join(cols), comments="", fmt="%.10g")
+        _write_text(args.csv, buf.getvalue())
+    flagged = s.get("flagged_blocks", [])
+    return 0 if (fpl is None or fpl.reachable) else 1 if flagged else 0
+
+
+def _write_text(path, text):
+    try:
+        from ..outputs import atomic_write
+        atomic_write(path, text.encode("utf-8"))
+    except ImportError:  # pragma: no cover
+        Path(path).write_text(text, encoding="utf-8")
