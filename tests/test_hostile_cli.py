@@ -276,3 +276,28 @@ def test_subprocess_error_is_one_line_without_traceback(tmp_path):
     r = subprocess.run(FDID + ["identify", str(csv), "-o", str(tmp_path / "m.json")], capture_output=True,
                        text=True, timeout=300)
     assert_one_line(r.returncode, r.stderr, "bad.csv", "x_cmd_mm", "row 3")
+
+
+def test_errors_name_the_file(capsys, tmp_path):
+    """A model refused by export (quasi-static: no state space) names the model file."""
+    qs = tmp_path / "qs.json"
+    qs.write_text(json.dumps({"format": "fdid-fmi-model", "format_version": 1, "kind": "quasi_static",
+                              "Ts": TS, "gains": {"x": {"K_vel": 1e-3, "K_acc": 1e-6, "K_jerk": 1e-9}},
+                              "cutoff_hz": 50.0, "order": 2}))
+    code, _, err = run(capsys, "export", qs, "-o", tmp_path / "q.fmu")
+    assert_one_line(code, err, "qs.json", "quasi-static")
+    qs.write_text(json.dumps({"format": "fdid-fmi-model", "format_version": 1, "kind": "quasi_static",
+                              "Ts": TS, "gains": {"x": {"K_vel": "fast", "K_acc": 1e-6, "K_jerk": 1e-9}},
+                              "cutoff_hz": 50.0, "order": 2}))
+    code, _, err = run(capsys, "simulate", qs, trace_csv(tmp_path / "r.csv", n=100), "-o", tmp_path / "p.csv")
+    assert_one_line(code, err, "qs.json", "K_vel")
+
+
+def test_search_refuses_when_no_objective_is_finite():
+    from fdid_fmi.identify.search import run_search
+    for method in ("de", "multistart"):
+        with pytest.raises(InputError, match="no candidate with a finite prediction error"):
+            run_search(lambda x: float("nan"), [0.0, 0.0], [1.0, 1.0], method=method, maxiter=2, starts=2)
+    res = run_search(lambda x: float(np.sum((x - 0.3) ** 2)) if x[0] > 0.1 else float("nan"),
+                     [0.0, 0.0], [1.0, 1.0], method="de", maxiter=20)
+    assert np.isfinite(res.fun) and np.allclose(res.x, 0.3, atol=1e-3)

@@ -17,11 +17,12 @@ The traceback is printed only with the global ``--debug`` flag (``fdid --debug C
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import sys
 import traceback
 
-from ..errors import FdidError
+from ..errors import FdidError, InputError
 
 # command modules, in the order their commands are listed in --help
 MODULES = ("identify", "simulate", "export", "validate", "diagnose", "plan", "align", "fleet", "demo")
@@ -61,6 +62,26 @@ def build_parser():
         except argparse.ArgumentError:
             pass  # the command defines its own --debug
     return parser
+
+
+@contextlib.contextmanager
+def naming(source):
+    """Inside this block, an InputError that names no file is re-raised naming ``source``
+    (e.g. a model refused by export names the model file it came from)."""
+    try:
+        yield
+    except InputError as exc:
+        if exc.source or source is None:
+            raise
+        where = []
+        if exc.column is not None:
+            where.append(f"column '{exc.column}'")
+        if exc.row is not None:
+            where.append(f"row {exc.row}")
+        text = str(exc)
+        prefix = ", ".join(where) + ": "
+        msg = text[len(prefix):] if where and text.startswith(prefix) else text
+        raise InputError(msg, source=str(source), column=exc.column, row=exc.row) from None
 
 
 def _one_line(text):

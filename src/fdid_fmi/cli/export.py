@@ -5,6 +5,7 @@ from pathlib import Path
 
 from ..model import load_model
 from ..outputs import check_output
+from . import naming
 
 
 def register(sub):
@@ -32,8 +33,9 @@ def run(args):
     check_output(out, inputs=[args.model], what="FMU", suffix=".fmu")
     model = load_model(args.model)
     platforms = [s.strip() for s in args.platforms.split(",") if s.strip()]
-    path = export_fmu(model, out, fmi_version=int(args.fmi), platforms=platforms,
-                      backend=args.backend, model_identifier=args.name)
+    with naming(args.model):
+        path = export_fmu(model, out, fmi_version=int(args.fmi), platforms=platforms,
+                          backend=args.backend, model_identifier=args.name)
     size = path.stat().st_size
     what = "pythonfmu" if args.backend == "python" else ", ".join(platforms)
     print(f"FMI {args.fmi} co-simulation FMU written to {path} ({size / 1024:.1f} KiB; {what})")

@@ -8,6 +8,7 @@ import sys
 from ..errors import InputError
 from ..model import DriveModel, check_name
 from ..outputs import check_output
+from . import naming
 from .mapping import add_trace_arguments, trace_from_args
 
 METHODS = ("quasi-static", "full-ls", "pole-search", "mimo")
@@ -307,7 +308,8 @@ def run(args):
     check_arguments(args)
     trace = trace_from_args(args.trace, args)
     check_data_range(trace, args.axis)
-    model = identify_from_args(trace, args, progress=sys.stderr.isatty())
+    with naming(args.trace):
+        model = identify_from_args(trace, args, progress=sys.stderr.isatty())
     model.save(args.output)
     for line in summary(model, trace):
         print(line)

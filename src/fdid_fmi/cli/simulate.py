@@ -9,6 +9,7 @@ from ..errors import InputError
 from ..model import load_model
 from ..outputs import atomic_write, check_output
 from ..simulate import simulate
+from . import naming
 from .mapping import add_trace_arguments, trace_from_args
 
 
@@ -54,7 +55,8 @@ def run(args):
     model = load_model(args.model)
     trace = trace_from_args(args.trace, args)
     pieces = trace.select(trace.meta.get("ranges"))
-    sims = [simulate(model, t, start_velocity={} if args.at_rest else None) for t in pieces]
+    with naming(args.trace):
+        sims = [simulate(model, t, start_velocity={} if args.at_rest else None) for t in pieces]
     write_prediction_csv(args.output, sims, model.axes)
     n = sum(len(r.t) for r in sims)
     what = f" in {len(sims)} ranges" if len(sims) > 1 else ""

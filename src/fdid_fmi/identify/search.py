@@ -116,7 +116,8 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
     cnt = _Counter(fun, progress, total, f"pole search ({method})")
 
     def local(x0):
-        res = optimize.minimize(cnt, x0, method="L-BFGS-B", bounds=bounds, options={"maxiter": 200})
+        with np.errstate(invalid="ignore", over="ignore"):   # inf objectives (see _Counter)
+            res = optimize.minimize(cnt, x0, method="L-BFGS-B", bounds=bounds, options={"maxiter": 200})
         return res.fun, res.x
 
     pts = []
