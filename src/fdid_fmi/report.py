@@ -94,7 +94,9 @@ class Report:
         fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
         plt.close(fig)
         png = base64.b64encode(buf.getvalue()).decode("ascii")
-        self.figures[name] = {"caption": caption, "data": data or {}}
+        labels = [{"xlabel": a.get_xlabel(), "ylabel": a.get_ylabel()} for a in fig.axes
+                  if a.get_label() != "<colorbar>"]
+        self.figures[name] = {"caption": caption, "data": data or {}, "axes": labels}
         self._blocks.append(("figure", (name, png, caption)))
 
     def add_data(self, name, data):

@@ -1,0 +1,167 @@
+"""fdid_fmi.plan against the virtual drive: predicted contour error per block (model and FMU),
+feed optimisation within the tolerance, the planner's HTML report and the CLI."""
+import json
+import re
+import subprocess
+import sys
+from html.parser import HTMLParser
+
+import numpy as np
+import pytest
+
+from fdid_fmi.plan.interpolate import AxisLimits, interpolate
+from fdid_fmi.plan.ncprogram import parse_program
+from fdid_fmi.plan.predict import predict, signed_contour_error
+
+PROGRAM = """G21 G90 G17 G94
+N10 G1 X12 F3000
+N20 G3 X24 Y0 R6
+N30 G1 X12 Y8 F4800
+"""
+LIMITS = {a: AxisLimits(100, 2000, 1e5) for a in "xyz"}
+
+
+@pytest.fixture(scope="module")
+def machine():
+    """The virtual Deckel-Maho-like machine and a model identified from its traces (once)."""
+    from fdid_fmi import identify as idf
+    from fdid_fmi.model import DriveModel
+    from fdid_fmi.virtual import MachineConfig, presets, simulate_machine
+    from fdid_fmi.virtual import trajectories as tj
+    cfg = presets.deckel_maho_like()
+    ms = []
+    for ax in ("x", "y"):
+        tr = simulate_machine(MachineConfig(axes=[cfg.axis(ax)], Ts=cfg.Ts),
+                              tj.linear_moves(n_moves=6, axes=(ax,), Ts=cfg.Ts, seed=1), seed=1)
+        ms.append(idf.identify_siso(tr, ax, seed=0))
+    return cfg, DriveModel.combine(ms, method="pole-search")
+
+
+@pytest.fixture(scope="module")
+def planned(machine):
+    cfg, model = machine
+    prog = parse_program(PROGRAM, source="t.nc")
+    ip = interpolate(prog, LIMITS, model.Ts)
+    return prog, ip
+
+
+def _virtual_contour(cfg, ip):
+    from fdid_fmi.virtual import simulate_machine
+    tr = simulate_machine(cfg, {a: ip.positions[a] for a in ("x", "y")}, seed=1)
+    cmd = np.column_stack([ip.positions["x"], ip.positions["y"]])
+    return signed_contour_error(cmd, np.column_stack([tr.act("x"), tr.act("y")]))
+
+
+def _per_block(ip, c):
+    out = []
+    for b in range(len(ip.spans)):
+        sel = ip.block_of_sample == b
+        out.append((np.sqrt(np.mean(c[sel] ** 2)), np.abs(c[sel]).max()))
+    return np.array(out)
+
+
+def test_signed_contour_error_sign():
+    t = np.linspace(0, 1, 200)
+    cmd = np.column_stack([10 * t, 0 * t])              # along +x
+    left = cmd + [0, 0.01]
+    assert np.allclose(signed_contour_error(cmd, left), 0.01)
+    assert np.allclose(signed_contour_error(cmd, cmd - [0, 0.01]), -0.01)
+
+
+def test_prediction_matches_the_virtual_drive(machine, planned):
+    cfg, model = machine
+    prog, ip = planned
+    pr = predict(ip, model=model, tol_mm=0.02, program=prog)
+    truth = _per_block(ip, _virtual_contour(cfg, ip))
+    pred = _per_block(ip, pr.contour)
+    moving = truth[:, 1] > 5e-3                          # blocks with > 5 um contour error
+    assert moving.sum() >= 2
+    assert np.all(np.abs(pred[moving] - truth[moving]) <= 0.10 * truth[moving])
+    assert pr.blocks[1]["flag"] and pr.summary["flagged_blocks"]
+    assert pr.summary["cycle_time_s"] == pytest.approx(ip.cycle_time)
+
+
+def test_prediction_through_the_fmu(machine, planned, tmp_path):
+    from fdid_fmi.fmu import export_fmu
+    cfg, model = machine
+    prog, ip = planned
+    fmu = export_fmu(model, tmp_path / "drive.fmu")
+    pf = predict(ip, fmu=fmu, program=prog)
+    assert pf.engine == "fmu"
+    truth = _per_block(ip, _virtual_contour(cfg, ip))
+    pred = _per_block(ip, pf.contour)
+    moving = truth[:, 1] > 5e-3
+    assert np.all(np.abs(pred[moving] - truth[moving]) <= 0.10 * truth[moving])
+
+
+def test_feed_optimisation_within_tol_and_faster_than_uniform(machine, planned):
+    from fdid_fmi.plan.optimize import optimize_feeds
+    cfg, model = machine
+    prog, ip = planned
+    tol = 0.025
+    fp = optimize_feeds(prog, LIMITS, model.Ts, tol, model=model)
+    assert fp.reachable
+    assert fp.before.summary["contour_max_um"] > tol * 1e3          # the programmed feeds are too fast
+    for r in fp.rows:
+        assert r["contour_max_after_um"] <= tol * 1e3
+    # checked independently on the virtual drive itself (5 % margin for the model's error)
+    ip2 = interpolate(prog, LIMITS, model.Ts, overrides=fp.overrides)
+    assert np.abs(_virtual_contour(cfg, ip2)).max() <= 1.05 * tol
+    assert fp.after.interp.cycle_time < fp.uniform_cycle_time_s
+    assert fp.uniform_override < 1.0
+
+
+class _Collect(HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.figures, self.tables, self._json, self.data = [], [], False, ""
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag == "figure":
+            self.figures.append(a.get("id"))
+        if tag == "table":
+            self.tables.append(a.get("id"))
+        if tag == "script" and a.get("id") == "report-data":
+            self._json = True
+
+    def handle_endtag(self, tag):
+        if tag == "script":
+            self._json = False
+
+    def handle_data(self, d):
+        if self._json:
+            self.data += d
+
+
+def test_cli_plan_report(machine, tmp_path):
+    cfg, model = machine
+    model.save(tmp_path / "m.json")
+    nc = tmp_path / "p.nc"
+    nc.write_text(PROGRAM + "M30\n")
+    before = nc.read_bytes()
+    r = subprocess.run([sys.executable, "-m", "fdid_fmi.cli", "plan", str(nc), "--model", str(tmp_path / "m.json"),
+                        "--limits", "100,2000,1e5", "--tol", "0.02", "--report", str(tmp_path / "r.html"),
+                        "--json", str(tmp_path / "r.json")], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "OVER" in r.stdout and nc.read_bytes() == before
+    h = _Collect()
+    h.feed((tmp_path / "r.html").read_text())
+    for fig in ("figure-path", "figure-errors_time", "figure-errors_path", "figure-model_bode", "figure-model_pzmap"):
+        assert fig in h.figures
+    for tab in ("table-blocks", "table-model_poles", "table-model_friction"):
+        assert tab in h.tables
+    data = json.loads(h.data.replace("<\\/", "</"))
+    unit = re.compile(r"\[.+\]")
+    for name, fig in data["figures"].items():
+        axes = fig["axes"]
+        assert axes, name
+        assert all(unit.search(a["ylabel"]) for a in axes), name
+        assert any(unit.search(a["xlabel"]) for a in axes), name
+    assert data == json.loads((tmp_path / "r.json").read_text())
+    # a bad program: one line naming the line, no traceback
+    nc.write_text("G1 X1 F100\nG2 X10 Y0 I1 J0\n")
+    r = subprocess.run([sys.executable, "-m", "fdid_fmi.cli", "plan", str(nc), "--model", str(tmp_path / "m.json"),
+                        "--limits", "100,2000,1e5"], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 2 and "row 2" in r.stderr and "Traceback" not in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
