@@ -14,12 +14,14 @@
    :func:`fdid_fmi.identify.quasi_static.feed_limits` (Eqn 3.6: |K_vel v| + |K_acc a| +
    |K_jerk j| <= e_max) then checks a candidate feed with the accelerations and jerks the
    interpolator uses at that feed; the largest feed that passes (bisection) is the first guess.
-2. **Dynamic correction.** The whole program is interpolated with the current overrides and run
-   through the twin (model or FMU); each cutting block's largest |contour error| is compared
-   with the tolerance and its override bracketed (feasible below, infeasible above) and bisected,
-   all blocks at once, until every bracket is within 2 %. A last check runs the chosen feeds
-   and lowers any block (and the one before it, whose lag carries into the corner) that still
-   exceeds the tolerance.
+2. **Dynamic correction, block by block.** With an exact stop at every block end, a block's
+   contour error depends on its own feed and on the lag the block before it leaves at the
+   corner. So, in program order, each cutting block's override is bisected (to 3 %) with the
+   twin (model or FMU) run on the block triple (previous block at its chosen feed, the block,
+   the next block at its first-pass feed): the largest override whose |contour error| stays
+   within the tolerance in the block's own window *and* in the next block's window. A last
+   run of the whole program checks the chosen feeds together and lowers any block (and the one
+   before it) that still exceeds the tolerance.
 
 Overrides never exceed 100 % (the programmed feed is the planner's cutting choice; rapids are
 left alone). The uniform reduction the result is compared with is the largest single override
@@ -162,7 +164,7 @@ class FeedPlan:
     uniform_cycle_time_s : float
     uniform_max_contour_um : float
     rows : list[dict]            the table (block, line, feeds, errors, durations)
-    iterations : int             twin runs in the dynamic correction
+    iterations : int             twin runs (block triples) in the dynamic correction
     reachable : bool             every cutting block within tol at the end
     """
 
@@ -229,7 +231,13 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
     bar = None
     if progress:
         from tqdm import tqdm
-        bar = tqdm(total=len(cutting) + 2, desc="feed optimisation", unit="block", leave=False)
+        bar = tqdm(total=len(cutting) + 10, desc="feed optimisation (blocks, then uniform override)",
+                   leave=False)
+
+    def tick():
+        if bar is not None:
+            bar.update(1)
+
     if before is None:
         before = run({})
     fp = first_pass(program, limits, Ts, qs, axes, tol_mm, min_override)
@@ -273,8 +281,7 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
                 mid = math.sqrt(lo * hi)
                 lo, hi = (mid, hi) if local_error(b, mid) <= tol_mm else (lo, mid)
             f[b] = lo
-        if bar is not None:
-            bar.update(1)
+        tick()
     it = sims
     # final check of the whole program with the chosen feeds
     after = run(f)
@@ -288,10 +295,6 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
             if i > 0:
                 f[cutting[i - 1]] = max(min_override, 0.95 * f[cutting[i - 1]])
         after = run(f)
-
-    def tick():
-        if bar is not None:
-            bar.update(0)
     reachable = all(_block_max(after, b) <= tol_mm for b in cutting)
     # uniform reduction: one override for all cutting blocks
     ulo, uhi = 0.0, 1.0
