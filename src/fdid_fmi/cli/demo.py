@@ -2,7 +2,10 @@
 
 virtual drive traces (or ``--trace FILE``) -> identify (pole search; Full LS and quasi-static as
 baselines) -> FMI 2.0 co-simulation FMU -> validate through fmpy against the held-out trace and
-the reference simulator -> report (HTML + JSON) in ``--out``.
+the reference simulator -> report (HTML + JSON, with the identified model: poles, friction, Bode,
+pole-zero map, FMU variables) in ``--out`` (default: ``out/demo/virtual`` or ``out/demo/emps``,
+one folder per variant). The virtual variant also plans ``examples/pocket_corner.nc`` with the
+identified model (``plan.html``: predicted contour error per block).
 """
 from __future__ import annotations
 
@@ -19,7 +22,8 @@ from ..model import DriveModel
 def register(sub):
     p = sub.add_parser("demo", help="identify -> FMU -> validate -> report, on generated or given data",
                        description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default="out/demo", help="folder for models, FMU, report")
+    p.add_argument("--out", default=None,
+                   help="folder for models, FMU, report (default: out/demo/virtual, out/demo/emps)")
     p.add_argument("--emps", action="store_true",
                    help="use the real EMPS data (../shared/data/emps) instead of the virtual drive")
     p.add_argument("--data", default=None, help="folder with DATA_EMPS.mat / DATA_EMPS_PULSES.mat")
@@ -52,10 +56,10 @@ def _emps_case(folder):
 def run(args):
     from .. import identify as idf
     from ..fmu import export_fmu, validate_fmu
-    from ..report import Report, decimate
+    from ..report import Report, add_model_section, decimate
     from ..simulate import simulate
 
-    out = Path(args.out)
+    out = Path(args.out) if args.out else Path("out/demo") / ("emps" if args.emps else "virtual")
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     if args.emps:
@@ -93,8 +97,10 @@ def run(args):
                  f"exported as an FMI 2.0 co-simulation FMU (native C) and validated through fmpy on "
                  f"held-out traces. Model: {out / 'model.json'}; FMU: {fmu}.", heading="What was done")
     rows, summary = [], {"title": title, "validation": {}}
+    vrs = {}
     for name, tr in val.items():
         vr = validate_fmu(fmu, tr, model=model)
+        vrs[name] = vr
         print(f"\n  validation on {name}: fmpy problems {len(vr.problems)}, max |FMU - reference| = "
               f"{vr.max_abs_diff_reference_mm:.3g} mm")
         print("  " + vr.table().replace("\n", "\n  "))
@@ -112,6 +118,9 @@ def run(args):
     rep.add_table("errors", rows, caption="Free-run tracking-error discrepancy (prediction - measured). "
                   "FMU: the exported FMU run through fmpy; baselines: the reference simulator.")
     rep.add_data("models", {"pole_search": model.identification, "metrics": model.metrics})
+    add_model_section(rep, model, fmu=fmu, validation={
+        "problems": [p for v in vrs.values() for p in v.problems],
+        "max_abs_diff_reference_mm": max(v.max_abs_diff_reference_mm for v in vrs.values())})
     rep.write(out / "report.html")
     rep.write_json(out / "report.json")
     summary["table"] = rows
@@ -122,8 +131,31 @@ def run(args):
         print(f"| {r['trace']} | {r['axis']} | {r['error RMS [µm]']:.1f} | {r['FMU RMS [µm]']:.3f} | "
               f"{r['FMU MAX [µm]']:.3f} | {r['Full LS RMS [µm]']:.3f} | {r['quasi-static RMS [µm]']:.3f} |")
     print(f"\nreport: {out / 'report.html'} (+ report.json, summary.json); total {time.perf_counter() - t0:.1f} s")
+    if not args.emps:
+        _plan_example(model, out)
     bad = [n for n, v in summary["validation"].items() if v["problems"]]
     return 1 if bad else 0
+
+
+def _plan_example(model, out):
+    """Plan the shipped example program with the identified model (skipped when the examples
+    folder is not there, e.g. in an installed package)."""
+    nc = Path(__file__).resolve().parents[3] / "examples" / "pocket_corner.nc"
+    if not nc.is_file():
+        return
+    from ..plan import read_program
+    from ..plan.interpolate import AxisLimits, interpolate
+    from ..plan.predict import predict
+    from ..plan.reporting import plan_report
+    prog = read_program(nc)
+    lim = {a: AxisLimits(100.0, 2000.0, 1e5) for a in ("x", "y", "z")}
+    pr = predict(interpolate(prog, lim, model.Ts), model=model, tol_mm=0.02, program=prog)
+    rep = plan_report(prog, pr, model=None, tol_mm=0.02)
+    rep.write(out / "plan.html")
+    s = pr.summary
+    print(f"plan of {nc.name} (limits 100 mm/s, 2000 mm/s^2, 1e5 mm/s^3; tol 20 µm): cycle time "
+          f"{s['cycle_time_s']:.3f} s, contour error MAX {s['contour_max_um']:.1f} µm, blocks over the "
+          f"tolerance {s['flagged_blocks']}; {out / 'plan.html'}")
 
 
 def _figures(rep, name, tr, model, simulate, decimate):

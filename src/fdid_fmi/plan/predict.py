@@ -21,7 +21,7 @@ from ..errors import InputError
 from ..metrics import rms
 
 
-def signed_contour_error(cmd, act, window=400):
+def signed_contour_error(cmd, act, window=400, feet=False):
     """Signed shortest distance from each actual point to the commanded polyline.
 
     Parameters
@@ -29,9 +29,12 @@ def signed_contour_error(cmd, act, window=400):
     cmd, act : (N, d) arrays, mm (d = 2 gives a sign; other d: unsigned distance)
     window : int   only segments within +-window samples of the same index are searched
 
+    feet : bool   also return the nearest path points and the unit left normals there
+
     Returns
     -------
     (N,) ndarray, mm; for d = 2 positive = left of the direction of travel
+    (and, with ``feet``, (N, d) foot points and (N, d) unit left normals (d = 2; zeros otherwise))
     """
     P = np.asarray(cmd, float)
     Q = np.asarray(act, float)
@@ -46,6 +49,8 @@ def signed_contour_error(cmd, act, window=400):
     moving = L2 > 0
     L2s = np.where(moving, L2, 1.0)
     out = np.empty(N)
+    foot = np.empty((N, dim))
+    nrm = np.zeros((N, dim))
     chunk = 512
     for k0 in range(0, N, chunk):
         ks = np.arange(k0, min(N, k0 + chunk))
@@ -65,13 +70,16 @@ def signed_contour_error(cmd, act, window=400):
         best = np.argmin(dd, axis=1)
         r = np.arange(ks.size)
         val = dd[r, best]
+        foot[ks] = Q[ks] - D[r, best]
         if dim == 2:
             ab = AB[seg][best]
             d = D[r, best]
             cross = ab[:, 0] * d[:, 1] - ab[:, 1] * d[:, 0]
             val = np.where(cross < 0, -val, val)
+            ln = np.sqrt(np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300))
+            nrm[ks] = np.column_stack([-ab[:, 1], ab[:, 0]]) / ln[:, None]
         out[ks] = val
-    return out
+    return (out, foot, nrm) if feet else out
 
 
 @dataclass

@@ -18,17 +18,21 @@ def path_figure(rep, name, pr, magnify=None, title=""):
     """XY path: programmed (black) and predicted with the contour error magnified and coloured."""
     plt = _plt()
     from matplotlib.collections import LineCollection
+    from .predict import signed_contour_error
     a, b = pr.axes[:2]
     ip = pr.interp
     cx, cy = ip.positions[a], ip.positions[b]
-    ex, ey = pr.position[a] - cx, pr.position[b] - cy
+    c, foot, nrm = signed_contour_error(np.column_stack([cx, cy]),
+                                        np.column_stack([pr.position[a], pr.position[b]]), feet=True)
     span = max(np.ptp(cx), np.ptp(cy), 1e-9)
-    emax = max(float(np.max(np.hypot(ex, ey))), 1e-12)
+    emax = max(float(np.max(np.abs(c))), 1e-12)
     if magnify is None:
         magnify = float(10 ** np.floor(np.log10(max(1.0, 0.05 * span / emax))))
-    px, py = cx + magnify * ex, cy + magnify * ey
+    # the deviation drawn normal to the path at the nearest path point, magnified
+    px, py = foot[:, 0] + magnify * c * nrm[:, 0], foot[:, 1] + magnify * c * nrm[:, 1]
     fig, ax = plt.subplots(figsize=(8, 7))
     ax.plot(cx, cy, "k-", lw=0.8, label="programmed (commanded) path")
+    ax.plot([], [], "-", color="C3", lw=2, label=f"predicted path, contour error x{magnify:g}")
     pts = np.column_stack([px, py]).reshape(-1, 1, 2)
     segs = np.concatenate([pts[:-1], pts[1:]], axis=1)
     c_um = pr.contour * 1e3
@@ -41,13 +45,15 @@ def path_figure(rep, name, pr, magnify=None, title=""):
     ax.set_xlabel(f"{a} [mm]")
     ax.set_ylabel(f"{b} [mm]")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set_title(f"{title} predicted path, error magnified x{magnify:g}")
+    ax.set_title(f"{title} predicted tool path, contour error magnified x{magnify:g}".strip())
     ax.legend(fontsize=8, loc="best")
     rep.add_figure(name, fig, data={"x_cmd_mm": decimate(cx), "y_cmd_mm": decimate(cy),
                                     "x_pred_mm": decimate(pr.position[a]), "y_pred_mm": decimate(pr.position[b]),
+                                    "x_plot_mm": decimate(px), "y_plot_mm": decimate(py),
                                     "contour_um": decimate(c_um), "magnification": magnify},
-                   caption=f"Programmed path (black) and the path the twin predicts, its deviation magnified "
-                           f"{magnify:g} times and coloured by the signed contour error.")
+                   caption=f"Programmed path (black) and the tool path the twin predicts: its deviation normal "
+                           f"to the path (the contour error) magnified {magnify:g} times and coloured by its "
+                           f"signed value (red: left of the direction of travel, blue: right).")
 
 
 def error_figures(rep, name, pr, tol_mm=None):
