@@ -118,6 +118,7 @@ def test_one_axis_run_says_what_is_missing_and_still_aligns_that_axis(yrun):
     sim, path, run, with_cal, alone = yrun
     lines = [m for m in alone.missing if "acc_tool" in m]
     assert len(lines) == 1 and "rotation about machine y not estimable" in lines[0]
+    assert "of its axes ['x', 'y'] only y is in the controller trace" in lines[0]
     assert not with_cal.missing
     m = run["motion"]
     a1, a2 = alone.trace.get("y", "acc"), with_cal.trace.get("y", "acc")

@@ -36,7 +36,7 @@ from .orientation import (AXIS_INDEX, G_MM_S2, axis_directions, euler_angles, in
 from .readers import SensorRecord
 from .resample import lowpass, to_controller_grid
 from .result import AlignmentResult, Estimate, SensorAlignment
-from .timing import coarse_offset, fit_clock, window_lags
+from .timing import MIN_DRIFT_WINDOWS, coarse_offset, fit_clock, window_lags
 
 __all__ = ["align", "controller_references"]
 
@@ -118,8 +118,13 @@ def _timing_estimates(mapping, sigma, info, rho, what):
 def _drift_missing(name, info, window_s, source):
     if info["drift_estimated"]:
         return []
-    return [f"{name} ({source}): clock drift not estimable: motion in only {info['n_windows']} "
-            f"window(s) of {window_s:g} s, assumed 0 ppm; record moves spread over a longer time"]
+    if info["n_windows"] < MIN_DRIFT_WINDOWS or not np.isfinite(info.get("slope_sigma", np.nan)):
+        return [f"{name} ({source}): clock drift not estimable: motion in only {info['n_windows']} "
+                f"window(s) of {window_s:g} s (needs {MIN_DRIFT_WINDOWS}), assumed 0 ppm; record moves "
+                f"spread over a longer time"]
+    return [f"{name} ({source}): clock drift not resolved: the lags of {info['n_windows']} windows over "
+            f"{info['span_s']:.1f} s give a slope within 2 sigma of 0 (sigma "
+            f"{info['slope_sigma'] * 1e6:.0f} ppm), assumed 0 ppm; a longer record resolves it"]
 
 
 def _given_rotation(orientation, name):
@@ -152,16 +157,16 @@ def _align_accelerometer(rec: SensorRecord, t, ref, opts, given):
     _check_sees_motion(rec, f_lp, opts["lowpass_hz"])
     jerk = np.gradient(f_lp, Ts_s, axis=0)
     env_s = np.linalg.norm(jerk, axis=1)
-    env_r = np.sqrt(sum(r["j"] ** 2 for r in ref.values()))
+    wanted = [a for a in rec.axes if a in ref]
+    if not wanted:
+        raise InputError(f"accelerometer '{name}' provides axes {list(rec.axes)}, none of which is "
+                         f"in the controller trace (axes {sorted(ref)})", source=src, column="axes")
+    env_r = np.sqrt(sum(ref[a]["j"] ** 2 for a in wanted))
     a0, rho = coarse_offset(t, env_r, rec.tau, env_s, opts["max_offset_s"], src,
                             f"accelerometer '{name}'")
     mapping = (a0, 1.0)
     clk = _Clocked(rec.tau, f_lp)
     rot, given_est = _given_rotation(given, name)
-    wanted = [a for a in rec.axes if a in ref]
-    if not wanted:
-        raise InputError(f"accelerometer '{name}' provides axes {list(rec.axes)}, none of which is "
-                         f"in the controller trace (axes {sorted(ref)})", source=src, column="axes")
     sigma, info, dirs = (np.nan, np.nan), {}, {}
     for it in range(opts["iterations"]):
         lo = max(t[0], mapping[0] + mapping[1] * rec.tau[0])
@@ -192,7 +197,7 @@ def _align_accelerometer(rec: SensorRecord, t, ref, opts, given):
         Rf = np.column_stack([ref[a]["a"] for a in tax])
         lags = window_lags(t, Rf, lambda tq: (clk.at(tq, mapping) - c) @ P.T, opts["window_s"],
                            0.025 if it == 0 else 0.006)
-        mapping, sigma, info = fit_clock(lags, mapping)
+        mapping, sigma, info = fit_clock(lags, mapping, base=(a0, 1.0))
     # final constant with the final mapping
     lo = max(t[0], mapping[0] + mapping[1] * rec.tau[0])
     hi = min(t[-1], mapping[0] + mapping[1] * rec.tau[-1])
@@ -228,9 +233,16 @@ def _align_accelerometer(rec: SensorRecord, t, ref, opts, given):
                                      "deg", f"azimuth / elevation of machine {a1} in the sensor frame",
                                      "single-axis segments"))
         sa.direction = {a1: d.tolist()}
+        if len(rec.axes) == 1:
+            why = f"the sensor provides only machine {a1} (axes={a1})"
+        elif len(wanted) == 1:
+            why = (f"of its axes {list(rec.axes)} only {a1} is in the controller trace (and moves "
+                   f"in this record)")
+        else:
+            why = f"of its axes {wanted} only {a1} accelerates on its own in this record"
         sa.missing.append(f"accelerometer '{name}' ({src}): rotation about machine {a1} not estimable: "
-                          f"only {a1} accelerates in this record; its {a1} acceleration is aligned, the "
-                          f"full orientation needs a run where two axes move (orientation=...)")
+                          f"{why}; its {a1} acceleration is aligned, the full orientation needs a run "
+                          f"where two of its axes move (orientation=...)")
     for a, d in dirs.items():
         sa.estimates.append(Estimate("orientation", f"gain_{a}", d["gain"], None, "1",
                                      f"sensor / encoder acceleration below {opts['lowpass_hz']:g} Hz",
@@ -295,7 +307,7 @@ def _align_grid(rec: SensorRecord, t, ref, opts):
         Rv = np.column_stack([ref[a]["v"] for a in have])
         lags = window_lags(t, Rv, lambda tq: (clk.at(tq, mapping, deriv=True) @ R2.T)[:, idx],
                            opts["window_s"], 0.025 if it == 0 else 0.006)
-        mapping, sigma, info = fit_clock(lags, mapping)
+        mapping, sigma, info = fit_clock(lags, mapping, base=(a0, 1.0))
     Pm = clk.at(t, mapping)
     ok = np.all(np.isfinite(Pm), axis=1)
     th, s_th, o, s_o, res = plate_alignment(Pm[ok], Q[ok], opts["kappa"])

@@ -25,9 +25,10 @@ from scipy import signal
 
 from ..errors import InputError
 
-__all__ = ["coarse_offset", "window_lags", "fit_clock", "MIN_CORRELATION"]
+__all__ = ["coarse_offset", "window_lags", "fit_clock", "MIN_CORRELATION", "MIN_DRIFT_WINDOWS"]
 
 MIN_CORRELATION = 0.6  # normalised envelope correlation below which no common motion is found
+MIN_DRIFT_WINDOWS = 5  # a drift (slope) needs lags from this many windows (3 degrees of freedom)
 
 
 def coarse_offset(t, ref_env, tau, sens_env, max_offset_s=None, source=None, what="sensor"):
@@ -128,14 +129,21 @@ def window_lags(t, ref, sens_fn, window_s=1.0, max_lag_s=0.025, min_energy=0.05)
     return out
 
 
-def fit_clock(lags, mapping, min_corr=0.5):
+def fit_clock(lags, mapping, min_corr=0.5, min_significance=2.0, base=None):
     """Update the clock mapping from window lags by a straight-line LS fit.
 
     Parameters
     ----------
     lags : output of :func:`window_lags`
-    mapping : (offset, scale), current t = offset + scale * tau
+    mapping : (offset, scale), current t = offset + scale * tau (the lags were measured with it)
+    base : (offset, scale), optional
+        Mapping the returned one is fitted from (default: ``mapping``). With the coarse mapping
+        as base, each round refits offset and drift as a whole, so the significance test of the
+        drift sees all of it.
     min_corr : windows with a weaker normalised correlation are not used
+    min_significance : the fitted drift is kept only when |drift| exceeds this many of its
+        standard deviations; otherwise the clocks are taken as equal (a short record's poorly
+        determined slope would shift the ends more than the drift it cannot resolve)
 
     Returns
     -------
@@ -151,10 +159,18 @@ def fit_clock(lags, mapping, min_corr=0.5):
         return mapping, (np.nan, np.nan), {"n_windows": 0, "drift_estimated": False, "residual_s": np.nan}
     tw = np.array([w["t"] for w in use])
     lw = np.array([w["lag"] for w in use])
+    if base is not None:
+        # the same events against the base mapping: true time t_w - lag, base time of that tau
+        a0, b0 = base
+        tb = a0 + b0 * (tw - a) / b
+        lw = tb - (tw - lw)
+        tw = tb
+        a, b = a0, b0
     tbar = float(tw.mean())
-    if n == 1 or np.ptp(tw) == 0:
+    if n < MIN_DRIFT_WINDOWS or np.ptp(tw) == 0:
         e0, c1 = float(lw.mean()), 0.0
-        s_e0, s_c1, res = np.nan, np.nan, np.nan
+        s_e0 = float(lw.std(ddof=1) / np.sqrt(n)) if n > 1 else np.nan
+        s_c1, res = np.nan, np.nan
         drift_ok = False
     else:
         X = np.column_stack([np.ones(n), tw - tbar])
@@ -169,9 +185,15 @@ def fit_clock(lags, mapping, min_corr=0.5):
         else:
             s_e0 = s_c1 = np.nan
         drift_ok = True
+        if not (np.isfinite(s_c1) and abs(c1) > min_significance * s_c1):
+            e0, c1 = float(lw.mean()), 0.0
+            s_e0 = float(lw.std(ddof=1) / np.sqrt(n)) if n > 1 else np.nan
+            drift_ok = False
     a_new = a - e0 - c1 * (a - tbar)
     b_new = b * (1 - c1)
     s_a = float(np.sqrt(s_e0 ** 2 + (a - tbar) ** 2 * s_c1 ** 2)) if np.isfinite(s_c1) else float(s_e0)
     s_b = float(b * s_c1)
     return (float(a_new), float(b_new)), (s_a, s_b), {"n_windows": n, "drift_estimated": drift_ok,
-                                                       "residual_s": res}
+                                                       "residual_s": res, "slope": float(c1),
+                                                       "slope_sigma": float(s_c1),
+                                                       "span_s": float(np.ptp(tw)) if n else 0.0}
