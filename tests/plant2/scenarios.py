@@ -21,13 +21,13 @@ scenario           Ts      what is different from the clean rigid plant (axis of
 ``clean_rigid_2ms`` 2 ms   nothing, slower controller clock
 ``clean_ff``       0.5 ms  full velocity and 90 % acceleration feed-forward
 ``flexible_y``     1 ms    Y two-mass, 38 Hz locked-motor mode (tool side recorded)
-``stribeck``       1 ms    X breakaway 60 N over Coulomb 40 N, v_s 3 mm/s
+``stribeck``       1 ms    X breakaway 90 N over Coulomb 40 N, v_s 2.5 mm/s
 ``backlash_tool``  2 ms    X two-mass drive train (140 Hz, zeta 0.15) with 15 um backlash,
                            tool side recorded
 ``backlash_motor`` 2 ms    the same, motor encoder only
 ``periodic``       0.5 ms  X 40 N sin(2 pi x / 5 mm) on the motor
-``delay``          1 ms    X recorded 2 samples late (fast moves)
-``coupling``       1 ms    force on X = -15 kg x (Y table acceleration)
+``delay``          1 ms    X recorded 3 samples late (fast moves)
+``coupling``       1 ms    force on X = -25 kg x (Y table acceleration)
 ``mode``           0.5 ms  X two-mass, light tool side (25 kg) on 110 kg, 52 Hz locked / 57.6 Hz
                            free-free, zeta 0.02, motor side recorded only (fast moves)
 =================  ======  ====================================================================
@@ -51,7 +51,7 @@ SCENARIOS = {
     "clean_rigid_2ms": (lambda: rigid(0.002), "x", None, GENTLE, ()),
     "clean_ff": (lambda: with_feedforward(0.0005), "x", None, GENTLE, ()),
     "flexible_y": (lambda: flexible_y(0.001), "y", "mode", GENTLE, ("y",)),
-    "stribeck": (lambda: rigid(0.001).with_axis("x", static=60.0, stribeck_velocity=3.0), "x", "stribeck",
+    "stribeck": (lambda: rigid(0.001).with_axis("x", static=90.0, stribeck_velocity=2.5), "x", "stribeck",
                  GENTLE, ()),
     "backlash_tool": (lambda: rigid(0.002).with_axis("x", two_mass=True, motor_mass=40.0, table_mass=110.0,
                                                     lock_hz=140.0, mode_zeta=0.15, backlash=0.015,
@@ -63,8 +63,8 @@ SCENARIOS = {
                        "x", "backlash", GENTLE, ()),
     "periodic": (lambda: rigid(0.0005).with_axis("x", periodic_amplitude=40.0, periodic_period=5.0), "x",
                  "periodic_position", GENTLE, ()),
-    "delay": (lambda: rigid(0.001).with_axis("x", record_delay=2), "x", "delay", FAST, ()),
-    "coupling": (lambda: replace(rigid(0.001), couplings=(Coupling("y", "x", 15.0),)), "x", "coupling",
+    "delay": (lambda: rigid(0.001).with_axis("x", record_delay=3), "x", "delay", FAST, ()),
+    "coupling": (lambda: replace(rigid(0.001), couplings=(Coupling("y", "x", 25.0),)), "x", "coupling",
                  GENTLE, ()),
     "mode": (lambda: rigid(0.0005).with_axis("x", two_mass=True, motor_mass=110.0, table_mass=25.0, lock_hz=52.0,
                                             mode_zeta=0.02, table_share=0.3),
@@ -74,20 +74,24 @@ CLEAN = [k for k, v in SCENARIOS.items() if v[2] is None]
 EFFECTS = [k for k, v in SCENARIOS.items() if v[2] is not None]
 
 
-def _effect_params(name, machine, axis):
+def _effect_params(effect, machine, axis):
+    """The true parameters of the effect present (plant units)."""
     a = machine.axis(axis)
     d = a.derived()
-    return {
-        "clean_rigid": {}, "clean_rigid_2ms": {}, "clean_ff": {},
-        "flexible_y": {"lock_hz": a.lock_hz, "free_free_hz": d["free_free_mode_hz"], "zeta": a.mode_zeta},
-        "mode": {"lock_hz": a.lock_hz, "free_free_hz": d["free_free_mode_hz"], "zeta": a.mode_zeta},
-        "stribeck": {"static_N": a.static, "coulomb_N": a.coulomb, "v_s_mm_s": a.stribeck_velocity},
-        "backlash_tool": {"backlash_mm": a.backlash},
-        "backlash_motor": {"backlash_mm": a.backlash},
-        "periodic": {"amplitude_N": a.periodic_amplitude, "period_mm": a.periodic_period},
-        "delay": {"samples": a.record_delay},
-        "coupling": {"source": "y", "gain_kg": 15.0, "channel": "y_cmd"},
-    }[name]
+    if effect == "mode":
+        return {"lock_hz": a.lock_hz, "free_free_hz": d["free_free_mode_hz"], "zeta": a.mode_zeta}
+    if effect == "stribeck":
+        return {"static_N": a.static, "coulomb_N": a.coulomb, "v_s_mm_s": a.stribeck_velocity}
+    if effect == "backlash":
+        return {"backlash_mm": a.backlash}
+    if effect == "periodic_position":
+        return {"amplitude_N": a.periodic_amplitude, "period_mm": a.periodic_period}
+    if effect == "delay":
+        return {"samples": a.record_delay}
+    if effect == "coupling":
+        c = next(c for c in machine.couplings if c.target == axis)
+        return {"source": c.source, "gain_kg": c.gain_kg, "channel": f"{c.source}_cmd"}
+    return {}
 
 
 def _named(tr: Trace, name, source):
@@ -121,6 +125,6 @@ def scenario(name, seed=0, n_moves=14):
                     f"plant2:{name}:train:{seed}")]
     val = [_named(simulate(m, p, seed=10 * seed + 2 + k, tool=tool), key, f"plant2:{name}:{key}:{seed}")
            for k, (key, p) in enumerate(paths.items())]
-    truth = {"scenario": name, "axis": axis, "effect": effect, "effect_params": _effect_params(name, m, axis),
+    truth = {"scenario": name, "axis": axis, "effect": effect, "effect_params": _effect_params(effect, m, axis),
              "tool_recorded": list(tool), "Ts": Ts, "machine": m.truth()}
     return train, val, truth
