@@ -160,6 +160,7 @@ def modes(yrun):
     for name, tr in (("aligned", res.trace), ("perfect", sim)):
         m = identify_mimo(tr, st, bounds=bounds, seed=0, maxiter=40)
         out[name] = [p for p in m.identification["complex_hz_zeta"] if 20 <= p[0] <= 40]
+        out[name + "_model"] = m
     return out, sim.meta["truth"]["linear"]["continuous"]["modes"]["y"]
 
 
@@ -170,3 +171,18 @@ def test_mode_from_aligned_acceleration(modes):
     assert fa == pytest.approx(truth["hz"], rel=0.01)       # measured 0.01 %
     assert fa == pytest.approx(fp, rel=0.002)                # as from perfectly aligned data
     assert za == pytest.approx(zp, rel=0.1)
+
+
+def test_aligned_trace_flows_into_diagnosis(yrun, modes):
+    """The diagnosis residual of the model fitted on the aligned acceleration, scored on the
+    aligned grid-encoder (tool) channel: small against the tool-side tracking error, and the
+    same as against the true tool position."""
+    from fdid_fmi.diagnose.residuals import residuals
+    sim, _, run, res, _ = yrun
+    model = modes[0]["aligned_model"]
+    r = residuals(model, res.trace).axes["y"]
+    e_tool = res.trace.cmd("y") - res.trace.get("y", "tool")
+    rms = lambda x: float(np.sqrt(np.mean(x ** 2)))  # noqa: E731
+    assert rms(r.tool_residual) < 0.05 * rms(e_tool)           # measured ~3 %
+    truth = run["motion"].pos("y", res.trace.t) - r.tool_predicted
+    assert abs(rms(r.tool_residual) - rms(truth)) < 0.05 * rms(truth)
