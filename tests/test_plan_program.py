@@ -116,3 +116,24 @@ def test_example_programs_read():
         prog = read_program(f)
         ip = interpolate(prog, LIMITS, TS)
         assert ip.cycle_time > 0 and prog.blocks, f
+
+
+def test_controller_setpoints_and_estimated_limits():
+    from fdid_fmi.plan.interpolate import commands_from_trace, limits_from_trace
+    from fdid_fmi.trace import Trace
+    from fdid_fmi.virtual import trajectories as tj
+    p = parse_program("G21 G17 G90 G94\nG1 X10 F3000\nG3 X20 Y0 R5\nG1 X10 Y5 F1200\n")
+    ip = interpolate(p, LIMITS, TS)
+    tr = Trace.from_arrays(ip.t, {a: {"cmd": ip.positions[a]} for a in ("x", "y")}, source="setpoints")
+    ic = commands_from_trace(p, tr, ["x", "y"])
+    moving = ip.block_of_sample >= 0
+    inside = np.zeros(ip.n, bool)
+    for k0, k1 in ip.spans:                 # away from the block ends (a corner sample is ambiguous)
+        inside[k0 + 2:k1 - 1] = True
+    assert np.array_equal(ic.block_of_sample[moving & inside], ip.block_of_sample[moving & inside])
+    assert ic.positions["x"] == pytest.approx(ip.positions["x"])
+    traj = tj.linear_moves(n_moves=4, axes=("x",), v=100.0, acc=2000.0, jerk=1e5, Ts=TS, seed=3,
+                           speed_range=(1.0, 1.0))
+    lim = limits_from_trace(traj.as_trace())["x"]
+    # the zero-phase Butterworth rings a few % above the true peaks
+    assert 95.0 <= lim.v <= 102.0 and 1500.0 <= lim.a <= 2100.0 and 2e4 <= lim.j <= 1.05e5

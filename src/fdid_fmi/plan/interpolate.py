@@ -317,29 +317,37 @@ def commands_from_trace(program, trace, axes):
             if not trace.has(a, "cmd"):
                 raise InputError(f"the trace has no commanded position of axis '{a}'", source=trace.source)
             P[:, i] = trace.cmd(a)
-    # dense programmed path, each vertex tagged with its block and path length
-    verts, tags, sv = [], [], []
+    # dense programmed path, each vertex tagged with its block, path length and tangent
+    verts, tags, sv, tans = [], [], [], []
     s0 = 0.0
     for b in program.blocks:
         if b.kind == "dwell" or b.length == 0:
             continue
-        m = max(2, int(math.ceil(b.length / 0.05)) + 1)
+        m = max(3, int(math.ceil(b.length / 0.02)) + 1)
         s = np.linspace(0.0, b.length, m)
-        verts.append(b.point(s))
+        pts = b.point(s)
+        tg = np.gradient(pts, axis=0)
+        verts.append(pts)
+        tans.append(tg / np.maximum(np.linalg.norm(tg, axis=1, keepdims=True), 1e-300))
         tags.append(np.full(m, b.index))
         sv.append(s0 + s)
         s0 += b.length
-    V, T, S = np.vstack(verts), np.concatenate(tags), np.concatenate(sv)
+    V, T, S, TG = np.vstack(verts), np.concatenate(tags), np.concatenate(sv), np.vstack(tans)
     dims = [i for i, a in enumerate(AXES) if a in axes]
     owner = np.empty(trace.n, int)
     path_s = np.empty(trace.n)
+    motion = np.vstack([np.diff(P, axis=0), np.zeros((1, 3))])
     j = 0
     win = 4000
     for k in range(trace.n):
         hi = min(len(V), j + win)
         d = np.sum((V[j:hi][:, dims] - P[k, dims]) ** 2, axis=1)
-        jj = j + int(np.argmin(d))
-        j = jj
+        dmin = float(d.min())
+        # a corner is in two blocks: of the nearest vertices, take the one the motion follows
+        cand = np.flatnonzero(d <= (math.sqrt(dmin) + 2e-3) ** 2)
+        score = TG[j + cand][:, dims] @ motion[k, dims]
+        jj = j + int(cand[np.argmax(score)]) if np.any(score != 0) else j + int(cand[-1] if dmin < 1e-12 else cand[np.argmin(d[cand])])
+        j = min(jj, j + int(np.argmin(d)))
         owner[k], path_s[k] = T[jj], S[jj]
     moving = np.flatnonzero(np.any(np.abs(np.diff(P, axis=0)) > 0, axis=1))
     cyc = (moving[-1] - moving[0] + 1) * Ts if moving.size else 0.0
