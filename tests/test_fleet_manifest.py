@@ -147,9 +147,13 @@ def test_compare_names_friction_backlash_resonance_and_no_change():
     r = 0.01 * np.sin(2 * np.pi * 30 * t) * np.exp(-((t % 0.7) / 0.1))
     rep = compare_models(_sig(), _sig(), errs, {"tool": (r, cmd, 1e-3)}, th)
     assert rep.kinds == ["resonance"] and rep.estimates["resonance_hz"] == pytest.approx(30, rel=0.05)
-    # a pole that moves by more than pole_rel inside the band, nothing else: "dynamics"
-    rep = compare_models(_sig(), _sig(poles=((-10.0, 0.0), (-5.0, 60.0))), flat, {}, th)
-    assert rep.kinds == ["dynamics"] and "poles moved" in rep.evidence[0]
+    # parameters that move while the old model still predicts the new traces: evidence, no flag
+    rep = compare_models(_sig(), _sig(peak=19.0, poles=((-10.0, 0.0), (-5.0, 60.0))), flat, {}, th)
+    assert not rep.changed and len(rep.evidence) == 2 and "not flagged" in rep.evidence[1]
+    # the prediction got worse, poles moved, no friction change, no shape: "dynamics"
+    grown = {"motor": {"old_on_old": 0.5, "old_on_new": 3.0, "new_on_new": 0.6}}
+    rep = compare_models(_sig(), _sig(poles=((-10.0, 0.0), (-5.0, 60.0))), grown, {}, th)
+    assert rep.kinds == ["dynamics"] and any("poles moved" in e for e in rep.evidence)
     # an effect diagnosis added
     rep = compare_models(_sig(), _sig(effects=["mode@31.0Hz"]), flat, {}, th)
     assert rep.kinds == ["resonance"] and rep.estimates["resonance_hz"] == 31.0

@@ -14,8 +14,11 @@ For one axis, :func:`compare_models` puts side by side
   [``pole_min_hz``, ``pole_max_fraction``/Ts] (faster poles are beyond what a trace at Ts pins down);
 * **added effects**: effect kinds diagnosis kept in the new model but not in the old one.
 
-An axis is flagged when any test passes its threshold (:class:`Thresholds`). The change is then
-named from the evidence: ``friction`` (level or band), ``backlash`` (the grown residual is a
+An axis is flagged when the old model predicts the new traces worse than its own, beyond the
+thresholds (the test that does not depend on how an identification parameterises the plant: on
+short traces two fits of the same plant can differ in friction level or fast poles by tens of
+per cent and predict equally well), or when diagnosis added an effect the old model did not have
+(``effects``). The parameter comparisons then name the change: ``friction`` (level or band), ``backlash`` (the grown residual is a
 direction-dependent offset: r ~ b * direction, R^2 >= ``backlash_r2``, backlash ~ 2|b|),
 ``resonance`` (the grown residual has a spectral peak holding >= ``peak_fraction`` of its energy
 above 3 Hz, or diagnosis added a mode), else ``dynamics``.
@@ -253,65 +256,79 @@ def compare_models(old_sig: ModelSignature, new_sig: ModelSignature, errors_um: 
             ev.append(f"{ch}: old model's error on the new traces {on:.3g} µm RMS vs {oo:.3g} µm on its own "
                       f"({on / oo if oo > 0 else float('inf'):.2g}x > {th.error_ratio:g}x and +{on - oo:.3g} µm "
                       f"> {th.error_floor_um:g} µm); the new model: {e.get('new_on_new', float('nan')):.3g} µm")
+    named = []                     # parameter changes beyond their thresholds (name a change)
     fp_o, fp_n = old_sig.friction_peak_um, new_sig.friction_peak_um
     if fp_o and fp_n:
         rep.friction_rel = fp_n / fp_o - 1.0
         if abs(rep.friction_rel) > th.friction_rel:
-            kinds.append("friction")
-            ev.append(f"friction level {'up' if rep.friction_rel > 0 else 'down'} {abs(rep.friction_rel):.0%}: "
-                      f"step-response peak {fp_o:.3g} -> {fp_n:.3g} µm (threshold {th.friction_rel:.0%})")
+            named.append(("friction", f"friction level {'up' if rep.friction_rel > 0 else 'down'} "
+                          f"{abs(rep.friction_rel):.0%}: step-response peak {fp_o:.3g} -> {fp_n:.3g} µm "
+                          f"(threshold {th.friction_rel:.0%})"))
     vt_o, vt_n = old_sig.v_tilde_mm_s, new_sig.v_tilde_mm_s
     if vt_o and vt_n:
         rep.v_tilde_factor = vt_n / vt_o
         if max(rep.v_tilde_factor, 1 / rep.v_tilde_factor) > th.v_tilde_factor:
-            if "friction" not in kinds:
-                kinds.append("friction")
-            ev.append(f"friction band v_tilde {vt_o:.3g} -> {vt_n:.3g} mm/s (x{rep.v_tilde_factor:.3g}; "
-                      f"threshold x{th.v_tilde_factor:g})")
+            named.append(("friction", f"friction band v_tilde {vt_o:.3g} -> {vt_n:.3g} mm/s "
+                          f"(x{rep.v_tilde_factor:.3g}; threshold x{th.v_tilde_factor:g})"))
     hi = th.pole_max_fraction / new_sig.Ts if new_sig.Ts else np.inf
-    po = [float(np.hypot(*p)) for p in old_sig.poles_hz]
-    pn = [float(np.hypot(*p)) for p in new_sig.poles_hz]
+    po = sorted(float(np.hypot(*p)) for p in old_sig.poles_hz)
+    pn = sorted(float(np.hypot(*p)) for p in new_sig.poles_hz)
     moved = []
-    if len(po) == len(pn):
-        for a, b in zip(po, pn):
-            if th.pole_min_hz <= a <= hi:
-                rel = abs(b - a) / a
-                rep.pole_rel.append(float(rel))
-                if rel > th.pole_rel:
-                    moved.append((a, b))
-    else:
-        moved.append((len(po), len(pn)))
+    for a in po:                   # each old pole in the band against the nearest new one
+        if th.pole_min_hz <= a <= hi and pn:
+            b = min(pn, key=lambda x: abs(x - a))
+            rel = abs(b - a) / a
+            rep.pole_rel.append(float(rel))
+            if rel > th.pole_rel:
+                moved.append((a, b))
     if moved:
-        ev.append("poles moved: " + ", ".join(f"{a:.3g} -> {b:.3g} Hz" for a, b in moved)
-                  + f" (threshold {th.pole_rel:.0%} in [{th.pole_min_hz:g}, {hi:.3g}] Hz)")
-    rep.new_effects = [e for e in new_sig.effects if e.split("@")[0] not in {x.split("@")[0] for x in old_sig.effects}]
+        named.append(("dynamics", "poles moved: " + ", ".join(f"{a:.3g} -> {b:.3g} Hz" for a, b in moved)
+                      + f" (threshold {th.pole_rel:.0%} in [{th.pole_min_hz:g}, {hi:.3g}] Hz)"))
+    old_kinds = {x.split("@")[0] for x in old_sig.effects}
+    rep.new_effects = [e for e in new_sig.effects if e.split("@")[0] not in old_kinds]
     if rep.new_effects and th.effects:
         ev.append(f"diagnosis added {rep.new_effects} (previous model: {old_sig.effects or 'none'})")
-    # name what grew: the tool side only when the motor side did not grow with it (else the
-    # motor explains it); a direction-dependent offset is friction when the friction level moved
-    for ch in grown:
-        if ch not in residuals or (ch == "tool" and "motor" in grown):
-            continue
-        sig = residual_signature(*residuals[ch])
-        if sig["direction_r2"] >= th.backlash_r2 and "friction" not in kinds:
-            kinds.append("backlash")
-            rep.estimates["backlash_um"] = sig["backlash_um"]
-            ev.append(f"{ch} residual is a direction-dependent offset (R^2 {sig['direction_r2']:.2f} >= "
-                      f"{th.backlash_r2:g}): lost motion ~ {sig['backlash_um']:.3g} µm")
-        elif sig["peak_hz"] and sig["peak_fraction"] >= th.peak_fraction:
-            kinds.append("resonance")
-            rep.estimates["resonance_hz"] = sig["peak_hz"]
-            ev.append(f"{ch} residual has a spectral peak at {sig['peak_hz']:.3g} Hz holding "
-                      f"{sig['peak_fraction']:.0%} of its energy above 3 Hz (>= {th.peak_fraction:.0%})")
-    if th.effects:
         for e in rep.new_effects:
             k = {"mode": "resonance", "backlash": "backlash", "stribeck": "friction",
                  "asymmetric_friction": "friction"}.get(e.split("@")[0].split(":")[0], "effect")
             kinds.append(k)
-            if k == "resonance" and "@" in e and "resonance_hz" not in rep.estimates:
-                rep.estimates["resonance_hz"] = float(e.split("@")[1].rstrip("Hz"))
-    if (grown or moved) and not kinds:
-        kinds.append("dynamics")
+            if k == "resonance" and "@" in e:
+                rep.estimates.setdefault("resonance_hz", float(e.split("@")[1].rstrip("Hz")))
+    if grown:
+        # the prediction got worse: name the change from the parameters that moved ...
+        # (friction acts where the model predicts: its change names a change only when that
+        # channel -- the motor side, or the tool side of a tool-side model -- got worse)
+        primary = "motor" if "motor" in errors_um else "tool"
+        for k, line in named:
+            if k == "friction" and primary in grown:
+                kinds.append(k)
+                ev.append(line)
+            else:
+                ev.append(line + f" -- not used to name the change ({primary} side within the thresholds)"
+                          if k == "friction" else line)
+        # ... and from the shape of what grew: the tool side only when the motor side did not
+        # grow with it (else the motor explains it); a direction-dependent offset is friction
+        # when the friction level moved
+        for ch in grown:
+            if ch not in residuals or (ch == "tool" and "motor" in grown):
+                continue
+            sig = residual_signature(*residuals[ch])
+            if sig["direction_r2"] >= th.backlash_r2 and "friction" not in kinds:
+                kinds.append("backlash")
+                rep.estimates["backlash_um"] = sig["backlash_um"]
+                ev.append(f"{ch} residual is a direction-dependent offset (R^2 {sig['direction_r2']:.2f} >= "
+                          f"{th.backlash_r2:g}): lost motion ~ {sig['backlash_um']:.3g} µm")
+            elif sig["peak_hz"] and sig["peak_fraction"] >= th.peak_fraction:
+                kinds.append("resonance")
+                rep.estimates["resonance_hz"] = sig["peak_hz"]
+                ev.append(f"{ch} residual has a spectral peak at {sig['peak_hz']:.3g} Hz holding "
+                          f"{sig['peak_fraction']:.0%} of its energy above 3 Hz (>= {th.peak_fraction:.0%})")
+        if not kinds:
+            kinds.append("dynamics")
+    else:
+        for _, line in named:
+            ev.append(line + " -- not flagged: the old model still predicts the new traces within "
+                      "the error thresholds")
     rep.kinds = list(dict.fromkeys(kinds))
     rep.changed = bool(rep.kinds)
     rep.summary = _summary(rep) if rep.changed else "no change beyond the thresholds"
