@@ -366,3 +366,18 @@ def test_forged_serialized_states_are_refused(fmu2):
         with pytest.raises(FMICallException):
             f.deSerializeFMUstate(bad, state)
     f.freeInstance()
+
+
+def test_fmi3_do_step_with_1e10_steps_is_refused_fast(tmp_path):
+    fmu = export_fmu(DriveModel.from_dict(model_dict()), tmp_path / "h3.fmu", fmi_version=3)
+    md = read_model_description(str(fmu))
+    f = FMU3Slave(guid=md.guid, unzipDirectory=extract(str(fmu)),
+                  modelIdentifier=md.coSimulation.modelIdentifier, instanceName="h3")
+    f.instantiate(loggingOn=False)
+    f.enterInitializationMode(startTime=0.0)
+    f.exitInitializationMode()
+    t0 = time.perf_counter()
+    with pytest.raises(FMICallException):
+        f.doStep(0.0, 1e10 * TS)
+    assert time.perf_counter() - t0 < 1.0
+    f.freeInstance()
