@@ -166,3 +166,30 @@ def test_cross_axis_coupling_moves_the_resting_axis():
     assert np.max(np.abs(free.act("x"))) < 1e-5
     assert np.max(np.abs(coupled.act("x"))) > 1e-4            # 5 kg x 5 m/s^2 = 25 N pushes X
     assert coupled.meta["truth"]["couplings"][0]["gain_kg"] == 5.0
+
+
+def test_backlash_scenario_records_the_lost_motion_on_the_tool_side():
+    """Scenario sets: one training and three named validation traces with the truth; in the
+    backlash scenario the tool side lags the motor by the backlash after every reversal, and the
+    motor-only variant records no tool channel."""
+    from plant2 import scenario
+    train, val, truth = scenario("backlash_tool", n_moves=3)
+    assert len(train) == 1 and [v.meta["name"] for v in val] == ["circle", "diamond", "reversals"]
+    assert truth["effect"] == "backlash" and truth["effect_params"]["backlash_mm"] == 0.015
+    assert truth["Ts"] == 0.002 and val[2].Ts == pytest.approx(0.002)
+    tr = val[2]
+    cmd, off = tr.cmd("x"), tr.get("x", "tool") - tr.act("x")
+    v = np.gradient(cmd, tr.Ts)
+    moving = np.abs(v) > 1e-6
+    last = np.zeros_like(v)
+    s, since = 0.0, 0
+    for k in range(v.size):                       # sign of the last move and time since it stopped
+        if moving[k]:
+            s, since = np.sign(v[k]), 0
+        else:
+            since += 1
+        last[k] = s if since * tr.Ts > 0.05 else 0.0
+    lost = np.median(off[last < 0]) - np.median(off[last > 0])
+    assert lost == pytest.approx(0.015, abs=0.003)               # 15 um lost motion, within 3 um
+    train_m, _, truth_m = scenario("backlash_motor", n_moves=3)
+    assert not train_m[0].has("x", "tool") and truth_m["tool_recorded"] == []
