@@ -99,3 +99,27 @@ def test_random_bytes_as_model_file(tmp_path, data):
     p = tmp_path / "m.json"
     p.write_bytes(data)
     assert _read_or_refuse(load_model, p) is None
+
+
+@SETTINGS
+@given(tokens=st.lists(st.text(max_size=12), max_size=4))
+def test_random_map_tokens(tokens):
+    """--map tokens: a mapping whose axis names are identifiers, or one-line InputError."""
+    import re
+
+    from fdid_fmi.cli.mapping import parse_mapping
+    try:
+        out = parse_mapping(tokens)
+    except FdidError as exc:
+        assert "\n" not in str(exc)
+        return
+    for key in out:
+        assert key == "t" or re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*\.(cmd|act|tool|vel|acc|cur|err)", key)
+
+
+def test_xml_entity_bomb_is_refused(tmp_path):
+    p = tmp_path / "bomb.xml"
+    ents = "".join(f'<!ENTITY l{k} "{("&l%d;" % (k - 1)) * 10 if k else "lol" * 20}">' for k in range(10))
+    p.write_text(f'<?xml version="1.0"?><!DOCTYPE b [{ents}]><b>&l9;</b>')
+    with pytest.raises(FdidError, match="bomb.xml"):
+        read_trace(p)
