@@ -59,6 +59,20 @@ DIAG_SETTINGS = {"min_gain": 0.05, "max_loss": 0.01, "max_steps": 4, "maxiter": 
                  "max_delay": 6, "detectors": list(DETECTORS)}
 
 
+def code_state():
+    """The commit and whether src/ had uncommitted changes when the benchmark ran (the numbers
+    belong to that code)."""
+    import subprocess
+
+    def git(*a):
+        try:
+            return subprocess.run(["git", *a], cwd=ROOT, capture_output=True, text=True, timeout=30).stdout.strip()
+        except (OSError, subprocess.SubprocessError):
+            return ""
+    return {"commit": git("rev-parse", "HEAD"), "src_dirty": bool(git("status", "--porcelain", "--", "src")),
+            "src_diff_sha1": __import__("hashlib").sha1(git("diff", "--", "src").encode()).hexdigest()}
+
+
 def _err(exc):
     return f"{type(exc).__name__}: {exc}".splitlines()[0][:300]
 
@@ -305,7 +319,9 @@ def main():
     names = [s for s in args.scenarios.split(",") if s] or list(p2.SCENARIOS)
     OUT.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    res = {"single_core": True, "quick": args.quick, "scenarios": names, "identification": [], "diagnosis": []}
+    res = {"single_core": True, "quick": args.quick, "scenarios": names, "code": code_state(),
+           "identification": [], "diagnosis": []}
+    print(f"code: {res['code']}", flush=True)
     for name in names:
         res["identification"].append(identification(name, args.quick))
     if not args.skip_diagnose:
