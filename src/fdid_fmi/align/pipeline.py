@@ -62,6 +62,12 @@ def controller_references(trace: Trace, lowpass_hz):
     return out
 
 
+def _rest_mask(ref):
+    """Controller samples at rest: low-passed encoder speed below max(0.5 mm/s, 1 % of its peak)."""
+    speed = np.sqrt(sum(r["v"] ** 2 for r in ref.values()))
+    return speed <= max(0.5, 0.01 * float(speed.max()))
+
+
 def _rest_intervals(t, ref, lo, hi):
     """Controller-time ramps (first rest, last rest) inside [lo, hi]: encoder speed ~ 0."""
     speed = np.sqrt(sum(r["v"] ** 2 for r in ref.values()))
@@ -306,7 +312,7 @@ def _align_grid(rec: SensorRecord, t, ref, opts):
         idx = [rec.axes.index(a) for a in have]
         Rv = np.column_stack([ref[a]["v"] for a in have])
         lags = window_lags(t, Rv, lambda tq: (clk.at(tq, mapping, deriv=True) @ R2.T)[:, idx],
-                           opts["window_s"], 0.025 if it == 0 else 0.006)
+                           opts["window_s"], 0.025 if it == 0 else 0.006, rest=opts["rest"])
         mapping, sigma, info = fit_clock(lags, mapping, base=(a0, 1.0))
     Pm = clk.at(t, mapping)
     ok = np.all(np.isfinite(Pm), axis=1)
@@ -379,7 +385,7 @@ def align(controller: Trace, sensors, orientation=None, lowpass_hz=10.0, window_
                          f"(axes {controller.axes})", source=controller.source, column="act")
     t = controller.t
     opts = dict(lowpass_hz=float(lowpass_hz), window_s=float(window_s), max_offset_s=max_offset_s,
-                iterations=int(iterations), kappa=float(nyq / lowpass_hz))
+                iterations=int(iterations), kappa=float(nyq / lowpass_hz), rest=_rest_mask(ref))
     results, signals = [], []
     for rec in sensors:
         if rec.kind == "accelerometer":

@@ -75,7 +75,24 @@ def coarse_offset(t, ref_env, tau, sens_env, max_offset_s=None, source=None, wha
     return float(off[k]), rho
 
 
-def window_lags(t, ref, sens_fn, window_s=1.0, max_lag_s=0.025, min_energy=0.05):
+def _windows(n, nw, L, rest):
+    """Window [start, stop) indices of at least nw samples; with a rest mask, each window ends at
+    the first resting sample after nw samples, so no move is cut by a window edge."""
+    out, i0 = [], L
+    while i0 + nw + L < n:
+        i1 = i0 + nw
+        if rest is not None:
+            nxt = np.flatnonzero(rest[i1:min(n - L, i0 + 4 * nw)])
+            if nxt.size:
+                i1 = i1 + int(nxt[0])
+        if i1 + L > n:
+            break
+        out.append((i0, i1))
+        i0 = i1
+    return out
+
+
+def window_lags(t, ref, sens_fn, window_s=1.0, max_lag_s=0.025, min_energy=0.05, rest=None):
     """Residual lag of the sensor against the reference, window by window.
 
     Parameters
@@ -87,6 +104,11 @@ def window_lags(t, ref, sens_fn, window_s=1.0, max_lag_s=0.025, min_energy=0.05)
     max_lag_s : float, s       largest lag searched
     min_energy : float         windows with less than this fraction of the largest window's
                                reference energy are skipped (nothing moves there)
+    rest : (N,) bool, optional samples where the machine is at rest: windows then end there.
+        A window that cuts a move biases the lag whenever the sensor and the reference differ by
+        more than a delay and a gain (a tool-side mode below the low-pass: the tool moves a few
+        percent more than the motor, more at higher frequencies); with both signals zero at the
+        window edges that bias vanishes (measured: lag scatter 150 us -> 10 us on the Y axis).
 
     Returns
     -------
@@ -97,20 +119,21 @@ def window_lags(t, ref, sens_fn, window_s=1.0, max_lag_s=0.025, min_energy=0.05)
     L = max(2, int(np.ceil(max_lag_s / Ts)))
     nw = max(1, int(round(window_s / Ts)))
     ref = np.atleast_2d(np.asarray(ref, dtype=float).T).T
-    starts = list(range(L, t.size - nw - L, nw))
-    energy = [float(np.sum(ref[i0:i0 + nw] ** 2)) for i0 in starts]
+    wins = _windows(t.size, nw, L, rest)
+    energy = [float(np.sum(ref[i0:i1] ** 2)) / (i1 - i0) for i0, i1 in wins]
     if not energy:
         return []
     emax = max(energy)
     out = []
-    for i0, e in zip(starts, energy):
+    for (i0, i1), e in zip(wins, energy):
         if emax == 0 or e < min_energy * emax:
             continue
-        te = t[i0 - L:i0 + nw + L]
+        te = t[i0 - L:i1 + L]
         s = sens_fn(te)
         if not np.all(np.isfinite(s)):
             continue
-        r = ref[i0:i0 + nw]
+        r = ref[i0:i1]
+        nw = i1 - i0
         c = sum(signal.correlate(s[:, j], r[:, j], mode="valid") for j in range(r.shape[1]))
         # energy of the shifted sensor segment: J = C^2 / E_s is the LS fit of a gain times the
         # reference at each lag (a plain correlation peak is pulled by the window's edges)
@@ -124,7 +147,7 @@ def window_lags(t, ref, sens_fn, window_s=1.0, max_lag_s=0.025, min_energy=0.05)
         y0, y1, y2 = J[k - 1], J[k], J[k + 1]
         den = y0 - 2 * y1 + y2
         frac = 0.5 * (y0 - y2) / den if den != 0 else 0.0
-        out.append({"t": float(t[i0] + 0.5 * nw * Ts), "lag": float((k - L + frac) * Ts),
+        out.append({"t": float(0.5 * (t[i0] + t[i1 - 1])), "lag": float((k - L + frac) * Ts),
                     "corr": float(np.sqrt(y1))})
     return out
 
