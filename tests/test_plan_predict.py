@@ -165,3 +165,28 @@ def test_cli_plan_report(machine, tmp_path):
                         "--limits", "100,2000,1e5"], capture_output=True, text=True, timeout=600)
     assert r.returncode == 2 and "row 2" in r.stderr and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_cli_optimise_through_the_fmu(machine, tmp_path):
+    from fdid_fmi.fmu import export_fmu
+    from fdid_fmi.plan.ncprogram import read_program
+    cfg, model = machine
+    fmu = export_fmu(model, tmp_path / "drive.fmu")
+    nc = tmp_path / "p.nc"
+    nc.write_text("G21 G90 G17 G94\nG0 X2 Y0 M3\nG1 X12 F3000\nG3 X24 Y0 R6\nM30\n")
+    r = subprocess.run([sys.executable, "-m", "fdid_fmi.cli", "plan", str(nc), "--fmu", str(fmu),
+                        "--limits", "100,2000,1e5", "--tol", "0.03", "--optimize", "-o", str(tmp_path / "opt.nc"),
+                        "--json", str(tmp_path / "r.json"), "--start", "2,0,0"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "passed over" in r.stdout and "M3" in r.stdout
+    opt = read_program(tmp_path / "opt.nc")
+    orig = read_program(nc)
+    assert [b.kind for b in opt.blocks] == [b.kind for b in orig.blocks]
+    assert opt.blocks[2].feed < orig.blocks[2].feed                 # the arc is slowed down
+    assert opt.blocks[0].feed == orig.blocks[0].feed                # the rapid is not touched
+    fp = json.loads((tmp_path / "r.json").read_text())["data"]["feed_plan"]
+    assert fp["reachable"] and fp["cycle_time_after_s"] < fp["uniform_cycle_time_s"]
+    rows = json.loads((tmp_path / "r.json").read_text())["tables"]["feeds"]
+    after = rows["columns"].index("contour_max_after_um")
+    assert max(row[after] for row in rows["rows"]) <= 30.0
