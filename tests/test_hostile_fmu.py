@@ -358,6 +358,9 @@ def test_forged_serialized_states_are_refused(fmu2):
     struct.pack_into("<d", b, len(b) - 8 * 3, float("nan"))   # a value in the state buffer
     forged.append(bytes(b))
     forged.append(good[:-1])
+    b = bytearray(good)
+    b[1:6] = b"\x1b[2J%"                                # another FMU's GUID, with control bytes
+    forged.append(bytes(b))
     for k, bad in enumerate(forged):
         f.reset()
         f.setupExperiment(startTime=0.0)

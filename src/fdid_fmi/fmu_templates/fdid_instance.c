@@ -369,8 +369,13 @@ int fdid_deserialize(FdidInstance *I, const char *fn, const void *bytes, size_t 
                          (unsigned long)(GUID_BYTES + snapshot_bytes()));
     memcpy(guid, in, GUID_BYTES);
     guid[GUID_BYTES - 1] = '\0';
-    if (strcmp(guid, fdid_model.guid) != 0)
+    if (strcmp(guid, fdid_model.guid) != 0) {
+        size_t i;
+        /* the bytes come from outside: only printable ASCII reaches the master's log */
+        for (i = 0; guid[i]; i++)
+            if ((unsigned char)guid[i] < 32 || (unsigned char)guid[i] > 126) guid[i] = '?';
         return fdid_fail(I, "%s: the state belongs to another FMU (GUID %s)", fn, guid);
+    }
     s = (Snapshot *)*state;
     if (s && !snapshot_valid(I, s)) return fdid_fail(I, "%s: *%s is not a state of this FMU", fn, I->api->state_arg);
     if (!s) {
