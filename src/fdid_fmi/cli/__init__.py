@@ -99,6 +99,11 @@ def _oserror_text(exc):
 
 
 def main(argv=None):
+    for stream in (sys.stdout, sys.stderr):   # file names that are not valid UTF-8 print escaped
+        try:
+            stream.reconfigure(errors="backslashreplace")
+        except (AttributeError, ValueError):
+            pass
     parser = build_parser()
     args = parser.parse_args(argv)
     debug = bool(getattr(args, "debug", False))
