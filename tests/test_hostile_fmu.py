@@ -30,7 +30,7 @@ from fdid_fmi.fmu import export_fmu
 from fdid_fmi.fmu.build import CFLAGS, compiler_available
 from fdid_fmi.fmu.description import model_description_fmi2, model_description_fmi3
 from fdid_fmi.fmu.layout import build_layout
-from fdid_fmi.model import DriveModel, Port, load_model
+from fdid_fmi.model import DriveModel, load_model
 
 pytestmark = pytest.mark.skipif(not compiler_available("linux64"), reason="gcc is not installed")
 
