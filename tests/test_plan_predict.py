@@ -88,6 +88,9 @@ def test_prediction_through_the_fmu(machine, planned, tmp_path):
     fmu = export_fmu(model, tmp_path / "drive.fmu")
     pf = predict(ip, fmu=fmu, program=prog)
     assert pf.engine == "fmu"
+    pm = predict(ip, model=model, program=prog)
+    for a in ("x", "y"):       # causal model: the row at t_k + h after doStep is simulate()'s sample
+        assert np.array_equal(pf.position[a], pm.position[a])
     truth = _per_block(ip, _virtual_contour(cfg, ip))
     pred = _per_block(ip, pf.contour)
     moving = truth[:, 1] > 5e-3
