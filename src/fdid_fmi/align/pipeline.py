@@ -259,11 +259,9 @@ def _align_accelerometer(rec: SensorRecord, t, ref, opts, given):
     if rot_final is not None:
         sa.rotation = rot_final.as_matrix().tolist()
         gs = rot_final.inv().apply([0.0, 0.0, G_MM_S2])
-        s_rot = np.radians(max((e.uncertainty or 0.0) for e in sa.estimates
-                               if e.step == "orientation" and e.unit == "deg"
-                               and not isinstance(e.value, list)) if any(
-            e.step == "orientation" and e.unit == "deg" and not isinstance(e.value, list)
-            for e in sa.estimates) else 0.0)
+        ang_sigma = [e.uncertainty or 0.0 for e in sa.estimates
+                     if e.step == "orientation" and e.name in ("alpha", "beta", "gamma")]
+        s_rot = np.radians(max(ang_sigma, default=0.0))  # gravity leaks by g x angle error
         sa.estimates.append(Estimate("gravity_bias", "bias", (c - gs).tolist(),
                                      np.sqrt(s_c ** 2 + (G_MM_S2 * s_rot) ** 2).tolist(), "mm/s^2",
                                      "c - R^T g e_z (g = 9806.65 mm/s^2, machine z vertical)"))
