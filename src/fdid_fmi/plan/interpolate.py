@@ -352,8 +352,10 @@ def commands_from_trace(program, trace, axes):
     moving = np.flatnonzero(np.any(np.abs(np.diff(P, axis=0)) > 0, axis=1))
     cyc = (moving[-1] - moving[0] + 1) * Ts if moving.size else 0.0
     spans = []
+    is_moving = np.zeros(trace.n, bool)
+    is_moving[moving + 1] = True
     for b in program.blocks:
-        ks = np.flatnonzero(owner == b.index)
+        ks = np.flatnonzero((owner == b.index) & is_moving)
         spans.append((int(ks[0]) - 1, int(ks[-1])) if ks.size else (0, 0))
     return Interpolation(t=trace.t - trace.t[0], positions={a: P[:, i].copy() for i, a in enumerate(AXES)},
                          Ts=Ts, block_of_sample=owner, spans=spans, path_s=path_s, cycle_time=cyc,

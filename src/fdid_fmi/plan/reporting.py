@@ -116,7 +116,8 @@ def plan_report(program, pr, model=None, tol_mm=None, feed_plan=None, fmu=None, 
             for a, v in s["axes"].items()]
     rows.append({"axis": "contour", "tracking RMS [µm]": s["contour_rms_um"], "tracking MAX [µm]": s["contour_max_um"]})
     rep.add_table("program", rows, caption="whole program: predicted tracking error per axis and contour error")
-    path_figure(rep, "path", pr)
+    if len(pr.axes) >= 2:
+        path_figure(rep, "path", pr)
     error_figures(rep, "errors", pr, tol_mm)
     cols = _BLOCK_COLS + [f"{a}_max_err_um" for a in pr.axes] + ["contour_rms_um", "contour_max_um",
                                                                   "contour_signed_peak_um", "flag"]
