@@ -307,11 +307,13 @@ def compare_models(old_sig: ModelSignature, new_sig: ModelSignature, errors_um: 
                 ev.append(line + f" -- not used to name the change ({primary} side within the thresholds)"
                           if k == "friction" else line)
         # ... and from the shape of what grew: the tool side only when the motor side did not
-        # grow with it (else the motor explains it); a direction-dependent offset is friction
-        # when the friction level moved
+        # grow with it (else the motor explains it), the model's own side only when the
+        # friction level did not move (else friction explains it)
         for ch in grown:
             if ch not in residuals or (ch == "tool" and "motor" in grown):
                 continue
+            if ch == primary and "friction" in kinds:
+                continue               # the friction change explains what grew there
             sig = residual_signature(*residuals[ch])
             if sig["direction_r2"] >= th.backlash_r2 and "friction" not in kinds:
                 kinds.append("backlash")

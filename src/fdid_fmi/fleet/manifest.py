@@ -60,7 +60,7 @@ FLEET_OPTIONS = ("diagnose", "detectors", "fmi")
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 _ENTRY_KEYS = {"machine", "axis", "traces", "trace", "map", "units", "options"}
 
-__all__ = ["EntrySpec", "Manifest", "load_manifest", "parse_manifest_text", "entry_hash",
+__all__ = ["EntrySpec", "Manifest", "load_manifest", "parse_manifest_text", "entry_hash", "software_version",
            "identify_args", "FLEET_OPTIONS"]
 
 
@@ -363,6 +363,21 @@ def file_digest(path):
     except OSError:
         return f"missing:{path}"
     return h.hexdigest()
+
+
+def software_version() -> str:
+    """``<package version>+src.<digest>``: the version string and a sha256 of the package's own
+    source files (Python modules and the FMU C templates), so that a rerun after any change of
+    the code (a new release, or a development commit) redoes the work instead of reusing results
+    the current code would not produce."""
+    from .. import __version__
+    root = Path(__file__).resolve().parents[1]
+    h = hashlib.sha256()
+    for f in sorted(root.rglob("*")):
+        if f.is_file() and f.suffix in (".py", ".c", ".h") and "__pycache__" not in f.parts:
+            h.update(f.relative_to(root).as_posix().encode())
+            h.update(f.read_bytes())
+    return f"{__version__}+src.{h.hexdigest()[:12]}"
 
 
 def entry_hash(spec: EntrySpec, version: str) -> str:

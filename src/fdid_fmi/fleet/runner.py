@@ -19,7 +19,7 @@ same. There is no scheduling here beyond ``submit`` and ``as_completed``.
 Reliability
 -----------
 Each entry has a content hash (:func:`~.manifest.entry_hash`: trace bytes, options, software
-version). An entry whose ``entry.json`` holds the same hash, a success (or a failure that follows
+version = package version + a digest of the package's source, :func:`~.manifest.software_version`). An entry whose ``entry.json`` holds the same hash, a success (or a failure that follows
 from its inputs) and whose outputs exist is not submitted again; with a previous fleet result, the
 comparison is keyed as well (hash + previous model file + thresholds). A killed worker loses only
 the entries it was running: on a Dask cluster the scheduler re-runs them on another worker (or
@@ -40,7 +40,7 @@ from pathlib import Path
 from .. import __version__
 from ..errors import InputError
 from .compare import Thresholds
-from .manifest import EntrySpec, Manifest, entry_hash, file_digest, load_manifest
+from .manifest import Manifest, entry_hash, file_digest, load_manifest, software_version
 from .work import ENTRY_FILE, EntryResult, PreviousModel, WorkItem, run_entry
 
 FLEET_FILE = "fleet.json"
@@ -168,7 +168,8 @@ def _previous_models(previous):
         mp = base / f"{e.machine}__{e.axis}" / e.outputs["model"]
         if mp.is_file():
             out[e.key] = PreviousModel(str(mp.resolve()), asdict(e.signature), dict(e.errors_um),
-                                       f"{Path(previous).name}/{e.key}")
+                                       f"{Path(previous).name}/{e.key}", dict(e.spec) or None,
+                                       tuple(e.trace_digests))
     return out, str(Path(previous))
 
 
@@ -301,11 +302,12 @@ def run_fleet(manifest, out, previous=None, scheduler=None, workers=None, client
     if workers is not None and (int(workers) != workers or workers < 1):
         raise InputError(f"workers must be a positive integer, got {workers!r}", column="workers")
 
+    version = software_version()
     results: dict[str, EntryResult] = {}
     todo: list[WorkItem] = []
     skipped = []
     for spec in man.entries:
-        h = entry_hash(spec, __version__)
+        h = entry_hash(spec, version)
         prev = prev_models.get(spec.key) if spec.error is None else None
         ck = _compare_key(h, prev, thresholds)
         edir = out / "entries" / spec.dirname
@@ -318,7 +320,7 @@ def run_fleet(manifest, out, previous=None, scheduler=None, workers=None, client
             results[spec.key] = done
             skipped.append(spec.key)
             continue
-        todo.append(WorkItem(spec, str(edir.resolve()), h, __version__, prev, thresholds.to_dict(), ck))
+        todo.append(WorkItem(spec, str(edir.resolve()), h, version, prev, thresholds.to_dict(), ck))
 
     executed = [w.spec.key for w in todo]
     ex = None
@@ -366,6 +368,7 @@ def run_fleet(manifest, out, previous=None, scheduler=None, workers=None, client
                      executor=ex.name if ex is not None else "none (nothing to do)",
                      workers=ex.workers if ex is not None else 0,
                      entries=[results[s.key] for s in man.entries], executed=executed, skipped=skipped,
-                     thresholds=thresholds, wall_s=time.perf_counter() - t_start, started_utc=started)
+                     thresholds=thresholds, wall_s=time.perf_counter() - t_start, started_utc=started,
+                     version=version)
     write_fleet_report(fr, out)
     return fr

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import FdidError, InputError
 from .compare import ChangeReport, ModelSignature, Thresholds, compare_models, model_signature
-from .manifest import EntrySpec, identify_args
+from .manifest import EntrySpec, file_digest, identify_args
 
 __all__ = ["StageTimes", "ValidationFigures", "PreviousModel", "WorkItem", "EntryResult", "run_entry",
            "validate_entry_fmu", "ENTRY_FILE"]
@@ -70,12 +70,19 @@ class ValidationFigures:
 
 @dataclass(frozen=True)
 class PreviousModel:
-    """The last model of the same axis (from a previous fleet result)."""
+    """The last model of the same axis (from a previous fleet result).
+
+    ``spec`` and ``trace_digests`` say which traces it was made from: when they are unchanged, the
+    old model's error on them is recomputed with the running software (so that both sides of the
+    comparison use the same simulator); otherwise the stored ``errors_um`` are used.
+    """
 
     model_path: str
     signature: dict
     errors_um: dict
     source: str
+    spec: dict | None = None
+    trace_digests: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -112,6 +119,8 @@ class EntryResult:
     effects_added : list of dict   what diagnosis kept
     change : ChangeReport or None  comparison with the previous model of the axis
     compare_key : str or None
+    spec : dict               the manifest entry (EntrySpec.to_dict())
+    trace_digests : list      sha256 of each trace file used
     worker : str              host:pid that did the work
     finished_utc : str
     reused_build : bool       identification, export, validation and diagnosis were reused from a
@@ -132,6 +141,8 @@ class EntryResult:
     effects_added: list = field(default_factory=list)
     change: ChangeReport | None = None
     compare_key: str | None = None
+    spec: dict = field(default_factory=dict)
+    trace_digests: list = field(default_factory=list)
     worker: str = ""
     finished_utc: str = ""
     reused_build: bool = False
@@ -257,7 +268,7 @@ def run_entry(item: WorkItem) -> EntryResult:
     from ..model import load_model
     spec = item.spec
     t_start = time.perf_counter()
-    res = EntryResult(spec.machine, spec.axis, "failed", item.input_hash,
+    res = EntryResult(spec.machine, spec.axis, "failed", item.input_hash, spec=spec.to_dict(),
                       worker=f"{socket.gethostname()}:{os.getpid()}")
     out = Path(item.entry_dir)
     try:
@@ -267,6 +278,7 @@ def run_entry(item: WorkItem) -> EntryResult:
         tm = StageTimes()
         t0 = time.perf_counter()
         traces = _read_traces(spec)
+        digests = [file_digest(p) for p in spec.traces]
         tm.read_s = time.perf_counter() - t0
         old = _existing(out, item.input_hash)
         if old is not None:
@@ -285,6 +297,7 @@ def run_entry(item: WorkItem) -> EntryResult:
         else:
             res.change, res.compare_key = None, None
         res.status, res.error, res.deterministic = "ok", None, False
+        res.spec, res.trace_digests = spec.to_dict(), digests
         tm.total_s = time.perf_counter() - t_start if old is None else tm.total_s + tm.compare_s
         res.timings = tm
     except FdidError as exc:
@@ -365,14 +378,29 @@ def _compare(item: WorkItem, model, traces):
         raise InputError(f"the previous model has no axis '{item.spec.axis}'", source=prev.model_path)
     on_new, residuals = channel_errors(old, traces, item.spec.axis)
     new_on_new, _ = channel_errors(model, traces, item.spec.axis)
+    on_old = _old_on_old(prev, old, item.spec.axis)
     errors = {}
-    for ch in set(on_new) | set(prev.errors_um):
-        errors[ch] = {"old_on_old": prev.errors_um.get(ch), "old_on_new": on_new.get(ch),
+    for ch in sorted(set(on_new) | set(on_old)):
+        errors[ch] = {"old_on_old": on_old.get(ch), "old_on_new": on_new.get(ch),
                       "new_on_new": new_on_new.get(ch)}
     new_sig = model_signature(model, item.spec.axis)
     new_sig.effects = _final_effects(item, model)
     return compare_models(ModelSignature(**prev.signature), new_sig, errors, residuals,
                           Thresholds.from_dict(item.thresholds), previous=prev.source)
+
+
+def _old_on_old(prev: PreviousModel, old, axis):
+    """The old model's error on its own traces, recomputed when those files are unchanged."""
+    from .manifest import file_digest
+    if prev.spec and prev.trace_digests and all(
+            file_digest(p) == d for p, d in zip(prev.spec.get("traces", []), prev.trace_digests)):
+        sp = dict(prev.spec)
+        sp["traces"] = tuple(sp["traces"])
+        sp["identify"] = tuple(sp["identify"])
+        sp["detectors"] = tuple(sp["detectors"]) if sp.get("detectors") else None
+        errors, _ = channel_errors(old, _read_traces(EntrySpec(**sp)), axis)
+        return errors
+    return dict(prev.errors_um)
 
 
 def _final_effects(item, model):

@@ -1,0 +1,78 @@
+"""Fleet throughput: entries per minute against the number of local workers, and where the time goes.
+
+Run:  .venv/bin/python benchmarks/bench_fleet.py [--machines 4] [--workers 1,2] [--no-diagnose]
+Writes benchmarks/results/bench_fleet.json and prints a markdown table.
+
+A virtual fleet (``fdid_fmi.fleet.virtual``: ``--machines`` two-axis machines, half with
+feed-forward, traces of 6 linear moves ~3 s at 1 ms) is run from scratch with a local process pool
+of each worker count (a fresh output folder each time, so nothing is reused), then rerun once
+unchanged (must do no work). Per entry the wall time of each stage (identify / export / validate /
+diagnose) is read from the entries' results. Entries per minute = entries / wall time of the run,
+including the pool's start-up.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from timing import timed  # noqa: E402
+
+from fdid_fmi.fleet import run_fleet  # noqa: E402
+from fdid_fmi.fleet.virtual import write_virtual_fleet  # noqa: E402
+
+OUT = ROOT / "benchmarks" / "results" / "bench_fleet.json"
+STAGES = ("identify_s", "export_s", "validate_s", "diagnose_s")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--machines", type=int, default=4, help="two-axis machines (default 4: 8 entries)")
+    ap.add_argument("--workers", default="1,2", help="worker counts to measure (default 1,2)")
+    ap.add_argument("--no-diagnose", action="store_true", help="leave diagnosis out")
+    args = ap.parse_args(argv)
+    counts = [int(w) for w in args.workers.split(",")]
+    rows, split = [], {}
+    with tempfile.TemporaryDirectory(prefix="bench_fleet_") as tmp:
+        tmp = Path(tmp)
+        man = write_virtual_fleet(tmp / "data", n_machines=args.machines, nights=(1,),
+                                  diagnose=not args.no_diagnose)[1]
+        for w in counts:
+            wall, fr = timed(lambda: run_fleet(man, tmp / f"w{w}", workers=w, progress=False))
+            n = len(fr.entries)
+            ok = [e for e in fr.entries if e.ok]
+            t_rerun, again = timed(lambda: run_fleet(man, tmp / f"w{w}", workers=w, progress=False))
+            tm = {s: float(np.mean([getattr(e.timings, s) for e in ok])) for s in STAGES + ("total_s",)}
+            split[w] = tm
+            rows.append({"workers": w, "entries": n, "failed": len(fr.failed), "wall_s": wall,
+                         "entries_per_min": 60.0 * n / wall, "rerun_s": t_rerun,
+                         "rerun_executed": len(again.executed), **{f"mean_{k}": v for k, v in tm.items()}})
+    res = {"machine": platform.platform(), "python": platform.python_version(), "machines": args.machines,
+           "diagnose": not args.no_diagnose, "rows": rows,
+           "note": "wall time of whole runs on a shared 2-core machine; per-stage times are means over "
+                   "the entries (each entry's stages run one after the other in one worker)"}
+    OUT.parent.mkdir(parents=True, exist_ok=True)
+    OUT.write_text(json.dumps(res, indent=1))
+    print(f"virtual fleet: {2 * args.machines} axes, diagnosis {'on' if res['diagnose'] else 'off'}\n")
+    print("| workers | entries | wall [s] | entries/min | identify [s] | export [s] | validate [s] | "
+          "diagnose [s] | entry total [s] | rerun [s] (work done) |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for r in rows:
+        print(f"| {r['workers']} | {r['entries']} | {r['wall_s']:.1f} | {r['entries_per_min']:.1f} | "
+              f"{r['mean_identify_s']:.2f} | {r['mean_export_s']:.2f} | {r['mean_validate_s']:.2f} | "
+              f"{r['mean_diagnose_s']:.2f} | {r['mean_total_s']:.2f} | {r['rerun_s']:.2f} "
+              f"({r['rerun_executed']} entries) |")
+    print(f"\nresults written to {OUT}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
