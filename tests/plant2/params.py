@@ -1,9 +1,10 @@
 """Parameters of the second plant (units: mm, mm/s, N, kg, s) and presets.
 
 The plant is an independent design, not a re-parameterisation of ``fdid_fmi.virtual``:
-LuGre friction (bristle state, optional Stribeck), a current loop as a continuous lag,
-a velocity estimate from encoder differences through a first-order filter, a one-cycle
-computation delay, a unilateral spring-damper coupling with a dead zone, fixed-step integration.
+LuGre friction (bristle state, optional Stribeck), a position loop at Ts with a one-sample
+computation delay around a velocity loop on the drive's own clock (250 us), a velocity estimate
+from encoder differences through a first-order filter, a current loop as a continuous lag, a
+unilateral spring-damper coupling with a dead zone, fixed-step integration (see :mod:`.plant`).
 Force balance in these units: acceleration [mm/s^2] = 1000 * force [N] / mass [kg].
 """
 from __future__ import annotations
