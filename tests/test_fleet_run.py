@@ -160,3 +160,33 @@ def test_dask_cluster_same_results_and_killed_worker(fleet):
             np.testing.assert_array_equal(getattr(a, m), getattr(b, m))
         assert e.errors_um == loc.errors_um
         assert [v.rms_um for v in e.validation] == [v.rms_um for v in loc.validation]
+
+
+def test_local_pool_killed_worker(fleet):
+    """A local pool process killed (SIGKILL) mid-run: the broken pool is replaced, the entries that
+    were not finished are resubmitted, and every entry is done exactly once."""
+    import psutil
+    out = fleet["root"] / "killed_local"
+    box = {}
+    th = threading.Thread(target=lambda: box.setdefault("r", run_fleet(fleet["man"][1], out, workers=2,
+                                                                       progress=False)))
+    th.start()
+    killed = None
+    t_end = time.time() + 120
+    while time.time() < t_end and killed is None:
+        if any((out / "entries").glob("*/entry.json")):
+            pool = [p for p in psutil.Process().children()
+                    if "spawn_main" in " ".join(p.cmdline()) and p.is_running()]
+            if pool:
+                killed = pool[0].pid
+                os.kill(killed, signal.SIGKILL)
+        time.sleep(0.05)
+    th.join(300)
+    assert killed is not None
+    fr = box["r"]
+    assert all(e.ok for e in fr.entries), [e.error for e in fr.entries]
+    pids = {e.worker.split(":")[1] for e in fr.entries}
+    assert len(pids) >= 2          # the work was spread over the pool (and its replacement)
+    assert len(list((out / "entries").glob("*/entry.json"))) == 4
+    assert not _no_temp_files(out)
+    assert run_fleet(fleet["man"][1], out, workers=2, progress=False).executed == []
