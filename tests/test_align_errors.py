@@ -162,3 +162,14 @@ def test_thesis_head_and_table_accelerometers(short, tmp_path):
         assert np.sqrt(np.mean(e ** 2)) < 1.15 * expected, ax
     for s, tr in (("acc_head", head), ("acc_table", table)):
         assert abs(res.sensor(s).get("time_offset").value - tr.start_s) < CFG.Ts
+
+
+def test_roles_already_present_are_replaced_and_said(short):
+    """A trace that already has a tool channel (here the simulator's truth) gets the aligned one
+    under the role; the old channel stays as an extra channel and the replacement is recorded."""
+    sim, run = short
+    res = align(sim, [read_grid_encoder(run["sensors"]["kgm"])])
+    assert res.settings["replaced_roles"] == {"y.tool": "y_tool"}   # x is rigid: had no tool
+    assert res.trace.roles["y"]["tool"] == "y_tool_mm" and "y_tool" in res.trace.channels
+    e = res.trace.get("y", "tool") - res.trace.extra("y_tool")
+    assert np.sqrt(np.mean(e ** 2)) < 2e-3
