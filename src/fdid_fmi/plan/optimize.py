@@ -245,42 +245,49 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
     blocks = program.blocks
     sims = 0
 
-    def local_error(b, fb):
-        """Largest |contour error| in the windows of blocks b and b+1 when the program from
-        block b-1 to b+1 runs alone (b-1 at its chosen override, b+1 at its first-pass one):
-        with exact stops, the lag a block leaves at its end shows in the next block's window."""
+    def local_error(b, fb, with_next=True):
+        """Largest |contour error| in the window of block b (and of block b+1) when the program
+        from block b-1 to b+1 runs alone: b-1 at its chosen override, b+1 at half its first-pass
+        override (so that its own error stays small and what its window shows is mostly the lag
+        block b leaves at the corner)."""
         nonlocal sims
-        i = b
-        lo_i = max(0, i - 1)
-        hi_i = min(len(blocks), i + 2)
-        sub = Program(blocks=[_reindex(bb, k) for k, bb in enumerate(blocks[lo_i:hi_i])],
-                      start=blocks[lo_i].start, source=program.source)
-        ov = {k: (fb if bb.index == b else f.get(bb.index, 1.0)) for k, bb in enumerate(blocks[lo_i:hi_i])}
+        lo_i, hi_i = max(0, b - 1), min(len(blocks), b + 2)
+        part = blocks[lo_i:hi_i]
+        sub = Program(blocks=[_reindex(bb, k) for k, bb in enumerate(part)], start=part[0].start,
+                      source=program.source)
+        ov = {k: (fb if bb.index == b else f.get(bb.index, 1.0) * (0.5 if bb.index > b else 1.0))
+              for k, bb in enumerate(part)}
         pr = predict(interpolate(sub, limits, Ts, overrides=ov, settle=0.2), tol_mm=tol_mm, program=sub, **twin)
         sims += 1
-        return max(_block_max(pr, k) for k, bb in enumerate(blocks[lo_i:hi_i]) if bb.index >= b)
+        return max(_block_max(pr, k) for k, bb in enumerate(part)
+                   if bb.index == b or (with_next and bb.index > b))
 
-    for b in cutting:
-        if local_error(b, f[b]) <= tol_mm:
+    def search(b, with_next):
+        """Largest override in [min_override, 1] within tol (bracket, then bisection)."""
+        if local_error(b, f[b], with_next) <= tol_mm:
             lo, hi = f[b], 1.0
-            if lo < 1.0 and local_error(b, 1.0) <= tol_mm:
-                lo = 1.0
+            if lo < 1.0 and local_error(b, 1.0, with_next) <= tol_mm:
+                return 1.0
         else:
-            lo, hi = 0.0, f[b]
-            g = f[b]
+            lo, hi, g = 0.0, f[b], f[b]
             while g > min_override:
                 g = max(min_override, g * 0.6)
-                if local_error(b, g) <= tol_mm:
+                if local_error(b, g, with_next) <= tol_mm:
                     lo = g
                     break
                 hi = g
-        if lo == 0.0:
-            f[b] = min_override
-        else:
-            while hi / lo > 1 + rel_tol:
-                mid = math.sqrt(lo * hi)
-                lo, hi = (mid, hi) if local_error(b, mid) <= tol_mm else (lo, mid)
-            f[b] = lo
+            if lo == 0.0:
+                return None
+        while hi / lo > 1 + rel_tol:
+            mid = math.sqrt(lo * hi)
+            lo, hi = (mid, hi) if local_error(b, mid, with_next) <= tol_mm else (lo, mid)
+        return lo
+
+    for b in cutting:
+        g = search(b, True)
+        if g is None:           # the next window is over tol whatever this block does: its own problem
+            g = search(b, False)
+        f[b] = min_override if g is None else g
         tick()
     it = sims
     # final check of the whole program with the chosen feeds
