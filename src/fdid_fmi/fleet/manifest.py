@@ -365,15 +365,26 @@ def file_digest(path):
     return h.hexdigest()
 
 
+# the parts of the package an entry's results depend on (reading, identification, model and
+# simulation, FMU generation and validation, diagnosis, the fleet itself)
+PIPELINE_SOURCES = ("io", "identify", "fmu", "fmu_templates", "diagnose", "fleet", "trace.py", "units.py",
+                    "signals.py", "model.py", "simulate.py", "metrics.py", "errors.py", "outputs.py",
+                    "cli/identify.py", "cli/mapping.py")
+
+
 def software_version() -> str:
-    """``<package version>+src.<digest>``: the version string and a sha256 of the package's own
-    source files (Python modules and the FMU C templates), so that a rerun after any change of
-    the code (a new release, or a development commit) redoes the work instead of reusing results
-    the current code would not produce."""
+    """``<package version>+src.<digest>``: the version string and a sha256 of the package's source
+    files the results depend on (``PIPELINE_SOURCES``: Python modules and the FMU C templates), so
+    that a rerun after a change of that code (a new release, or a development commit) redoes the
+    work instead of reusing results the current code would not produce."""
     from .. import __version__
     root = Path(__file__).resolve().parents[1]
     h = hashlib.sha256()
-    for f in sorted(root.rglob("*")):
+    files = []
+    for part in PIPELINE_SOURCES:
+        p = root / part
+        files += [p] if p.is_file() else sorted(p.rglob("*"))
+    for f in files:
         if f.is_file() and f.suffix in (".py", ".c", ".h") and "__pycache__" not in f.parts:
             h.update(f.relative_to(root).as_posix().encode())
             h.update(f.read_bytes())

@@ -298,7 +298,8 @@ def run_entry(item: WorkItem) -> EntryResult:
             res.change, res.compare_key = None, None
         res.status, res.error, res.deterministic = "ok", None, False
         res.spec, res.trace_digests = spec.to_dict(), digests
-        tm.total_s = time.perf_counter() - t_start if old is None else tm.total_s + tm.compare_s
+        tm.total_s = (time.perf_counter() - t_start if old is None else
+                      tm.read_s + tm.identify_s + tm.export_s + tm.validate_s + tm.diagnose_s + tm.compare_s)
         res.timings = tm
     except FdidError as exc:
         res.status, res.error, res.deterministic = "failed", _one_line(str(exc)), True
