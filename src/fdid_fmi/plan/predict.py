@@ -21,21 +21,24 @@ from ..errors import InputError
 from ..metrics import rms
 
 
-def signed_contour_error(cmd, act, window=400, feet=False):
+def signed_contour_error(cmd, act, window=400, feet=False, k_nearest=12):
     """Signed shortest distance from each actual point to the commanded polyline.
 
     Parameters
     ----------
     cmd, act : (N, d) arrays, mm (d = 2 gives a sign; other d: unsigned distance)
-    window : int   only segments within +-window samples of the same index are searched
-
+    window : int   only segments within +-window samples of the same index are searched (a path
+        that passes the same place twice is not confused)
     feet : bool   also return the nearest path points and the unit left normals there
+    k_nearest : int   the segments next to the k nearest commanded samples are the candidates
+        (KD-tree); points with no candidate in the window are searched by brute force
 
     Returns
     -------
     (N,) ndarray, mm; for d = 2 positive = left of the direction of travel
     (and, with ``feet``, (N, d) foot points and (N, d) unit left normals (d = 2; zeros otherwise))
     """
+    from scipy.spatial import cKDTree
     P = np.asarray(cmd, float)
     Q = np.asarray(act, float)
     if P.shape != Q.shape or P.ndim != 2:
@@ -43,42 +46,59 @@ def signed_contour_error(cmd, act, window=400, feet=False):
                          column="contour")
     N, dim = P.shape
     if N < 2:
-        return np.linalg.norm(Q - P, axis=1)
-    A, AB = P[:-1], np.diff(P, axis=0)
+        d0 = np.linalg.norm(Q - P, axis=1)
+        return (d0, P.copy(), np.zeros_like(P)) if feet else d0
+    AB = np.diff(P, axis=0)
     L2 = np.einsum("ij,ij->i", AB, AB)
     moving = L2 > 0
+    mv_idx = np.flatnonzero(moving)
+    best_seg = np.full(N, -1)
+    if mv_idx.size:
+        # candidates: moving segments next to the k nearest moving-segment start points
+        tree = cKDTree(P[mv_idx])
+        k = min(k_nearest, mv_idx.size)
+        _, nn = tree.query(Q, k=k)
+        nn = np.atleast_2d(nn.reshape(N, -1))
+        segs = mv_idx[nn]                                            # (N, k) segment indices
+        prev = np.searchsorted(mv_idx, segs) - 1                     # the moving segment before
+        segs = np.concatenate([segs, mv_idx[np.maximum(prev, 0)]], axis=1)
+        ok = np.abs(segs - np.arange(N)[:, None]) <= window
+        A = P[segs]
+        AQ = Q[:, None, :] - A
+        t = np.clip(np.einsum("ksj,ksj->ks", AQ, AB[segs]) / L2[segs], 0.0, 1.0)
+        D = AQ - t[..., None] * AB[segs]
+        dist = np.where(ok, np.einsum("ksj,ksj->ks", D, D), np.inf)
+        j = np.argmin(dist, axis=1)
+        found = np.isfinite(dist[np.arange(N), j])
+        best_seg[found] = segs[np.arange(N), j][found]
+    # brute force where the KD-tree found nothing in the window (e.g. the command at rest)
+    todo = np.flatnonzero(best_seg < 0)
     L2s = np.where(moving, L2, 1.0)
-    out = np.empty(N)
-    foot = np.empty((N, dim))
-    nrm = np.zeros((N, dim))
-    chunk = 512
-    for k0 in range(0, N, chunk):
-        ks = np.arange(k0, min(N, k0 + chunk))
-        lo, hi = max(0, k0 - window), min(N - 1, ks[-1] + window + 1)
-        seg = slice(lo, hi)
-        AQ = Q[ks, None, :] - A[None, seg, :]
+    for c0 in range(0, todo.size, 256):
+        ks = todo[c0:c0 + 256]
+        lo, hi = max(0, ks[0] - window), min(N - 1, ks[-1] + window + 1)
+        seg = np.arange(lo, hi)
+        AQ = Q[ks, None, :] - P[None, seg, :]
         t = np.clip(np.einsum("ksj,sj->ks", AQ, AB[seg]) / L2s[None, seg], 0.0, 1.0)
         D = AQ - t[..., None] * AB[None, seg, :]
-        dist = np.sqrt(np.einsum("ksj,ksj->ks", D, D))
-        idx = np.arange(lo, hi)[None, :]
-        far = np.abs(idx - ks[:, None]) > window
+        dist = np.einsum("ksj,ksj->ks", D, D)
+        dist = np.where(np.abs(seg[None, :] - ks[:, None]) > window, np.inf, dist)
         # a segment of zero length (the command at rest) only counts when nothing moves nearby
-        dist = np.where(far, np.inf, dist)
         dist_m = np.where(moving[None, seg], dist, np.inf)
         use_m = np.isfinite(dist_m).any(axis=1)
         dd = np.where(use_m[:, None], dist_m, dist)
-        best = np.argmin(dd, axis=1)
-        r = np.arange(ks.size)
-        val = dd[r, best]
-        foot[ks] = Q[ks] - D[r, best]
-        if dim == 2:
-            ab = AB[seg][best]
-            d = D[r, best]
-            cross = ab[:, 0] * d[:, 1] - ab[:, 1] * d[:, 0]
-            val = np.where(cross < 0, -val, val)
-            ln = np.sqrt(np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300))
-            nrm[ks] = np.column_stack([-ab[:, 1], ab[:, 0]]) / ln[:, None]
-        out[ks] = val
+        best_seg[ks] = seg[np.argmin(dd, axis=1)]
+    ab = AB[best_seg]
+    t = np.clip(np.einsum("ij,ij->i", Q - P[best_seg], ab) / L2s[best_seg], 0.0, 1.0)
+    foot = P[best_seg] + t[:, None] * ab
+    d = Q - foot
+    out = np.sqrt(np.einsum("ij,ij->i", d, d))
+    nrm = np.zeros((N, dim))
+    if dim == 2:
+        cross = ab[:, 0] * d[:, 1] - ab[:, 1] * d[:, 0]
+        out = np.where(cross < 0, -out, out)
+        ln = np.sqrt(np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300))
+        nrm = np.column_stack([-ab[:, 1], ab[:, 0]]) / ln[:, None]
     return (out, foot, nrm) if feet else out
 
 
