@@ -202,7 +202,7 @@ def _align_accelerometer(rec: SensorRecord, t, ref, opts, given):
         P = np.array([proj[a] for a in tax])
         Rf = np.column_stack([ref[a]["a"] for a in tax])
         lags = window_lags(t, Rf, lambda tq: (clk.at(tq, mapping) - c) @ P.T, opts["window_s"],
-                           0.025 if it == 0 else 0.006)
+                           0.025 if it == 0 else 0.006, rest=opts["rest"])
         mapping, sigma, info = fit_clock(lags, mapping, base=(a0, 1.0))
     # final constant with the final mapping
     lo = max(t[0], mapping[0] + mapping[1] * rec.tau[0])
