@@ -29,7 +29,9 @@ setup() {
     if [ ! -x "$VENV/bin/python" ]; then
         "$PY" -m venv "$VENV"
     fi
-    local stamp="$VENV/.installed-$(sha1sum pyproject.toml | cut -c1-12)-$1"
+    # a new stamp (reinstall, which rebuilds the compiled core) when the project or the C changes
+    local stamp="$VENV/.installed-$(cat pyproject.toml src/fdid_fmi/fmu_templates/*.[ch] \
+        src/fdid_fmi/kernel_ext/* | sha1sum | cut -c1-12)-$1"
     if [ ! -f "$stamp" ]; then
         "$VENV/bin/python" -m pip install -q --upgrade pip
         if [ "$1" = test ]; then

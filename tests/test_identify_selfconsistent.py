@@ -31,7 +31,7 @@ def truth_and_trace():
     a = rg.characteristic_polynomial([40.0], [(12.0, 0.9)])
     b = {("x_error", "x_cmd"): np.array([0.05, 0.7 * a[1], 0.9 * a[2], 0.0]),
          ("x_error", "x_dnf"): np.array([0.0, 0.0, 500.0, 0.0])}
-    truth = assemble(siso_structure("x"), Fit(J=0, a=a, b=b, rms=None, feasible=True,
+    truth = assemble(siso_structure("x", same_sample="hold"), Fit(J=0, a=a, b=b, rms=None, feasible=True,
                                                v_tilde={"x": 2.0}), TS)
     xr = commands()
     sim = simulate(truth, {"x": xr}, Ts=TS)

@@ -29,8 +29,10 @@ Step k, given xi, the inputs (commands, externals) and the axis states of step k
    ``velocity`` output or the backward difference (x[k] - x[k-1]) / Ts of the ``position``
    output. v depends on d through the feed-through D, so v = alpha + beta d is affine and
    sat is piecewise linear: the step is solved exactly by checking the branches
-   (linear / +1 / -1 for each friction input, in that order; the first consistent one wins).
-   A one-sample lag instead limit-cycles at rest when L*|beta|/v_tilde >> 1;
+   stick (v = 0 held by |d| <= L, beta < 0) / linear / +1 / -1 for each friction input, in
+   that order; the first consistent one wins. A one-sample lag instead limit-cycles at rest
+   when L*|beta|/v_tilde >> 1, and without the stick branch an axis at rest creeps through
+   the viscous transition band;
 3. y = C xi + D u + G1 u_ref; xi <- A xi + B u.
 Sums are numpy's pairwise order with plain IEEE products (no fused multiply-add).
 """

@@ -6,16 +6,18 @@ the tracking error is e = (c0 s^3 + c1 s^2 + c2 s)/P x_r + d0 s/P d_nf; x = x_r 
 The continuous model is discretised with Tustin, which gives the friction input a direct
 feed-through into the position (and so into the backward-difference velocity): with the
 values used here the friction loop gain L |beta| / v_tilde is about 40, so the exact
-piecewise-linear friction solve matters. Inputs from outside the drive (commands, external
-inputs, features of the command) then enter one sample late (:func:`causal`), as in every
-identified model: a sampled drive answers one cycle later.
+piecewise-linear friction solve matters. The same-sample term of inputs from outside the drive
+(commands, external inputs, features of the command) then uses their extrapolation from the
+samples before (:func:`causal`), as in every identified model.
 """
 from __future__ import annotations
 
 import numpy as np
 from scipy.signal import cont2discrete
 
-from fdid_fmi.model import DriveModel, Port, delayed_input
+from fdid_fmi.identify.pole_search import extrapolate_late_inputs
+from fdid_fmi.identify.regressors import SAME_SAMPLE
+from fdid_fmi.model import DriveModel, Port
 
 TS = 1e-3
 
@@ -63,28 +65,11 @@ def _disc(A, B, C, D, Ts=TS):
 
 
 def causal(Ts, A, B, C, D, inputs, outputs, **kw):
-    """DriveModel whose outside inputs act one sample late: a register r_i = u_i[k-1] per such
-    input replaces u_i in every row; the error rows stay e = x_r[k] - x[k]."""
-    A, B, C, D = (np.atleast_2d(np.asarray(x, float)) for x in (A, B, C, D))
-    late = [i for i, q in enumerate(inputs) if delayed_input(q.kind, q.params)]
-    n, k = A.shape[0], len(late)
-    A2 = np.zeros((n + k, n + k))
-    A2[:n, :n] = A
-    B2 = np.zeros((n + k, B.shape[1]))
-    B2[:n] = B
-    C2 = np.hstack([C, np.zeros((C.shape[0], k))])
-    D2 = D.copy()
-    for j, i in enumerate(late):
-        A2[:n, n + j] = B[:, i]
-        B2[:n, i] = 0.0
-        B2[n + j, i] = 1.0
-        C2[:, n + j] = D[:, i]
-        D2[:, i] = 0.0
-        for o, q in enumerate(outputs):     # e = x_r[k] - x[k], x from x_r[k-1]
-            if q.kind == "error" and inputs[i].kind == "command" and q.axis == inputs[i].axis:
-                C2[o, n + j] -= 1.0
-                D2[o, i] = 1.0
-    return DriveModel(Ts=Ts, A=A2, B=B2, C=C2, D=D2, inputs=inputs, outputs=outputs, **kw)
+    """DriveModel whose outside inputs reach the outputs through their extrapolation from the
+    samples before (the identified models' causal form, ``pole_search.extrapolate_late_inputs``)."""
+    A, B, C, D = extrapolate_late_inputs(*(np.atleast_2d(np.asarray(x, float)) for x in (A, B, C, D)),
+                                         inputs, outputs, SAME_SAMPLE["quadratic"])
+    return DriveModel(Ts=Ts, A=A, B=B, C=C, D=D, inputs=inputs, outputs=outputs, **kw)
 
 
 def siso_model(v_tilde=1.0, level=1.0, **kw):

@@ -63,6 +63,7 @@ class Recipe:
     friction_sign: dict
     velocity: str
     ma_order: int
+    same_sample: str
     real_hz: list
     complex_hz_zeta: list           # [(hz, zeta)]
     v_tilde: dict                   # axis -> mm/s
@@ -120,7 +121,8 @@ def recipe_from_model(model: DriveModel) -> Recipe:
     diag = ident.get("diagnose", {})
     return Recipe(inputs=ins, outputs=outs, masks=masks, dc_gain=pairs(st.get("dc_gain", {})),
                   friction_sign=pairs(st.get("friction_sign", {})), velocity=st.get("velocity", "backward"),
-                  ma_order=int(st.get("ma_order", 1)), real_hz=real, complex_hz_zeta=cplx,
+                  ma_order=int(st.get("ma_order", 1)), same_sample=st.get("same_sample") or "quadratic",
+                  real_hz=real, complex_hz_zeta=cplx,
                   v_tilde={a: float(v) for a, v in vt.items()},
                   delays={a: int(d) for a, d in diag.get("delays", {}).items()},
                   effects=list(model.effects))
@@ -154,7 +156,7 @@ def structure_of(recipe: Recipe, search="local"):
                    n_real=n_real, n_complex=n_cplx, locked_real_hz=locked_real,
                    locked_complex=locked_cplx, mask=mask, dc_gain=dict(recipe.dc_gain),
                    friction_sign=dict(recipe.friction_sign), velocity=recipe.velocity,
-                   ma_order=recipe.ma_order)
+                   ma_order=recipe.ma_order, same_sample=recipe.same_sample)
     return st, n_real, n_cplx
 
 

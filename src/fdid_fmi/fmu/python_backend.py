@@ -3,7 +3,8 @@
 The FMU carries ``resources/<module>.py`` (the slave, from ``python_slave_template.py``) and
 ``resources/fdid_layout.json`` (model data + variable table) and pythonfmu's generic binary,
 which starts the Python interpreter it finds at run time. So the importer needs Python 3 with
-``numpy`` (and a libpython that pythonfmu can load); fdid_fmi itself is not needed. The
+fdid-fmi installed (its compiled simulation core steps the model) and a libpython that
+pythonfmu can load. The
 modelDescription.xml is the same as the C backend's (units, ModelStructure), with pythonfmu's
 CoSimulation capabilities. FMI 2.0 only.
 """
@@ -21,34 +22,12 @@ from .layout import build_layout
 
 
 def layout_json(layout, guid, ident, description=None):
-    """The data the Python slave needs, as a JSON-able dict."""
-    import itertools
-    m = layout.model
-    S, S2, G1 = m.steady_state_maps()
-    aidx = {a: i for i, a in enumerate(layout.axes)}
-    inputs = []
-    for p in m.inputs:
-        d = {"kind": p.kind, "axis": aidx.get(p.axis, -1)}
-        if p.kind == "feature":
-            d.update(function=p.params["function"],
-                     source_position=p.params.get("source", "command") == "position",
-                     v_tilde=float(p.params.get("v_tilde", 1.0)), v_s=float(p.params.get("v_s", 1.0)),
-                     period_mm=float(p.params.get("period_mm", 1.0)))
-        inputs.append(d)
-    out = {"Ts": m.Ts, "inputs": inputs, "fric_input": layout.fric_inputs,
-           "fric_vel_output": layout.fric_vel_output, "fric_vel_diff": layout.fric_vel_diff,
-           "axis_cmd": layout.axis_cmd, "axis_pos": layout.axis_pos, "axis_err": layout.axis_err,
-           "axis_vel": layout.axis_vel, "axis_tool": layout.axis_tool,
-           "axis_level0": layout.axis_level0, "axis_vtilde0": layout.axis_vtilde0,
-           "branches": [list(b) for b in itertools.product((0, 1, -1), repeat=len(layout.fric_inputs))],
-           "variables": [{"name": v.name, "role": v.role, "index": v.index, "type": v.type,
-                          "causality": v.causality, "variability": v.variability,
-                          "description": v.description} for v in layout.variables],
-           "model_description": model_description_fmi2(layout, guid, ident, description)}
-    for k, arr in (("A", m.A), ("B", m.B), ("C", m.C), ("D", m.D), ("S", S), ("S2", S2), ("G1", G1)):
-        out[k] = arr.ravel().tolist()
-        out["shape_" + k] = list(arr.shape)
-    return out
+    """The data the Python slave needs, as a JSON-able dict: the model and the variable table."""
+    return {"model": layout.model.to_dict(),
+            "variables": [{"name": v.name, "role": v.role, "index": v.index, "type": v.type,
+                           "causality": v.causality, "variability": v.variability,
+                           "description": v.description} for v in layout.variables],
+            "model_description": model_description_fmi2(layout, guid, ident, description)}
 
 
 def export_python_fmu(model, path, model_identifier, description=None):

@@ -180,7 +180,15 @@ static int lu_solve(double *Mx, double *rhs, int k) {
     return 1;
 }
 
-/* simulate.solve_friction: d_i = L_i sat((alpha_i + sum_j beta_ij d_j) / vt_i), exactly */
+/* The friction inputs of one step, exactly: d_i = L_i sat(v_i / vt_i) with v = alpha + beta d
+ * (alpha: velocity with the friction at zero; beta = dv/dd, from the feed-through D). Branches
+ * per input, tried in this order (the last input varies fastest), the first consistent wins:
+ *   stick   v_i = 0 with |d_i| <= L_i and beta_ii < 0: the friction holds the axis at rest
+ *           (a sampled Coulomb model without this creeps through its viscous band);
+ *   linear  |v_i| <= vt_i, d_i = L_i v_i / vt_i;   +1 / -1   d_i = +-L_i (sliding). */
+enum { BR_STICK = 2, BR_LINEAR = 0 };
+static const int branch_code[4] = {BR_STICK, BR_LINEAR, 1, -1};
+
 static void solve_friction(int m, const double *alpha, const double *beta, const double *level,
                            const double *vt, double *d) {
     int br[FDID_MAX_FRICTION];
@@ -188,6 +196,10 @@ static void solve_friction(int m, const double *alpha, const double *beta, const
     if (m == 1) {
         double L = level[0], v = vt[0], a = alpha[0], bb = beta[0], den;
         if (L == 0.0) { d[0] = 0.0; return; }
+        if (bb < 0.0) {
+            double x = -a / bb;
+            if (fdid_abs(x) <= L) { d[0] = x; return; }
+        }
         den = v - L * bb;
         if (den > 0) {
             double x = L * a / den;
@@ -198,41 +210,47 @@ static void solve_friction(int m, const double *alpha, const double *beta, const
         d[0] = L * fdid_sat(a / v);
         return;
     }
-    for (i = 0; i < m; i++) nb *= 3;
+    for (i = 0; i < m; i++) nb *= 4;
     for (b = 0; b < nb; b++) {
-        /* itertools.product((0, 1, -1), repeat=m): the last input varies fastest */
-        int code = b, ok = 1, nlin = 0, lin[FDID_MAX_FRICTION], nonlin[FDID_MAX_FRICTION], nnl = 0;
+        int code = b, ok = 1, nu = 0, un[FDID_MAX_FRICTION], sl[FDID_MAX_FRICTION], nsl = 0;
         double z;
         for (i = m - 1; i >= 0; i--) {
-            int digit = code % 3;
-            code /= 3;
-            br[i] = digit == 0 ? 0 : (digit == 1 ? 1 : -1);
+            br[i] = branch_code[code % 4];
+            code /= 4;
         }
         for (i = 0; i < m; i++) {
             d[i] = 0.0;
-            if (br[i] == 0) lin[nlin++] = i;
-            else { nonlin[nnl++] = i; d[i] = br[i] * level[i]; }
+            if (br[i] == BR_STICK || br[i] == BR_LINEAR) un[nu++] = i;
+            else { sl[nsl++] = i; d[i] = br[i] * level[i]; }
         }
-        if (nlin > 0) {
-            double Mx[FDID_MAX_FRICTION * FDID_MAX_FRICTION], rhs[FDID_MAX_FRICTION], g[FDID_MAX_FRICTION];
+        if (nu > 0) {
+            /* stick rows: sum_c beta_rc d_c = -(alpha_r + sliding part);
+             * linear rows: d_r - g_r sum_c beta_rc d_c = g_r (alpha_r + sliding part) */
+            double Mx[FDID_MAX_FRICTION * FDID_MAX_FRICTION], rhs[FDID_MAX_FRICTION];
             int r, c;
-            for (r = 0; r < nlin; r++) g[r] = level[lin[r]] / vt[lin[r]];
-            for (r = 0; r < nlin; r++) {
-                double s = 0.0;
-                for (c = 0; c < nlin; c++)
-                    Mx[r * nlin + c] = (r == c ? 1.0 : 0.0) - g[r] * beta[lin[r] * m + lin[c]];
-                for (c = 0; c < nnl; c++) s += beta[lin[r] * m + nonlin[c]] * d[nonlin[c]];
-                rhs[r] = g[r] * (alpha[lin[r]] + s);
+            for (r = 0; r < nu; r++) {
+                int q = un[r];
+                double s = 0.0, g = level[q] / vt[q];
+                for (c = 0; c < nsl; c++) s += beta[q * m + sl[c]] * d[sl[c]];
+                for (c = 0; c < nu; c++) {
+                    double bqc = beta[q * m + un[c]];
+                    Mx[r * nu + c] = br[q] == BR_STICK ? bqc : (r == c ? 1.0 : 0.0) - g * bqc;
+                }
+                rhs[r] = br[q] == BR_STICK ? -(alpha[q] + s) : g * (alpha[q] + s);
             }
-            if (!lu_solve(Mx, rhs, nlin)) continue;
-            for (r = 0; r < nlin; r++) d[lin[r]] = rhs[r];
+            if (!lu_solve(Mx, rhs, nu)) continue;
+            for (r = 0; r < nu; r++) d[un[r]] = rhs[r];
         }
         for (i = 0; i < m && ok; i++) {
             double s = 0.0;
+            if (br[i] == BR_STICK) {
+                ok = level[i] > 0.0 && beta[i * m + i] < 0.0 && fdid_abs(d[i]) <= level[i];
+                continue;
+            }
             if (level[i] == 0.0) continue;
             for (j = 0; j < m; j++) s += beta[i * m + j] * d[j];
             z = (alpha[i] + s) / vt[i];
-            if (br[i] == 0 && fdid_abs(z) > 1 + FDID_TOL) ok = 0;
+            if (br[i] == BR_LINEAR && fdid_abs(z) > 1 + FDID_TOL) ok = 0;
             else if (br[i] == 1 && z < 1 - FDID_TOL) ok = 0;
             else if (br[i] == -1 && z > -1 + FDID_TOL) ok = 0;
         }

@@ -12,10 +12,10 @@
  *               xi0 = S u0 - S2 du, du = v0 Ts on the command inputs, friction inputs at
  *               L sat(v0 / v_tilde); x[-1] = x[0] - v0 Ts; v[-1] = v0;
  *   step k      feature inputs from the previous step's velocity / position; friction inputs
- *               d = L sat(v / v_tilde) solved exactly (v = alpha + beta d is affine in d and
- *               sat is piecewise linear: branches linear / +1 / -1 per friction input, in that
- *               order, the first consistent one wins); y = C xi + D u + G1 u_ref;
- *               xi <- A xi + B u.
+ *               d = L sat(v / v_tilde) solved exactly with stiction (v = alpha + beta d is
+ *               affine in d: branches stick (v = 0, |d| <= L) / linear / +1 / -1 per friction
+ *               input, in that order, the first consistent one wins); y = C xi + D u + G1 u_ref;
+ *               xi <- A xi + B u. Position-type outputs have no D from commands (causal).
  * The velocity of an axis is its model velocity output, or the backward difference
  * (x[k] - x[k-1]) / Ts of its position output when the model has none.
  *

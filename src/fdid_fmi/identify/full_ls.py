@@ -158,14 +158,14 @@ def identify_full_ls(traces, axis="x", cutoff_hz=None, order=2, v_tilde=None, p_
     vt = float(v_tilde) if v_tilde else 1e-3 * vmax
     st = Structure(inputs=[InputSpec("command", axis), InputSpec("friction", axis),
                            InputSpec("feature", axis, params={"function": "abs_sat", "v_tilde": vt})],
-                   outputs=[OutputSpec("error", axis)], n_real=3, n_complex=0)
+                   outputs=[OutputSpec("error", axis)], n_real=3, n_complex=0, same_sample="quadratic")
     c, o = 0.5 * (dnp - dnm), 0.5 * (dnp + dnm)   # d = c sign(v) + o |sign(v)|
     en, ci, fi, gi = f"{axis}_error", f"{axis}_cmd", f"{axis}_dnf", f"{axis}_abs_sat"
     b = {(en, ci): np.array([1.0 - b0, a1 - b1, a2 - b2, 0.0]),             # e/x_r = (P - N)/P
          (en, fi): np.array([0.0, 0.0, c, 0.0]), (en, gi): np.array([0.0, 0.0, o, 0.0])}
-    # the continuous model, Tustin-discretised, causal by extrapolating the same-sample command
-    model = assemble(st, Fit(J=0.0, a=a, b=b, rms=None, feasible=True, v_tilde={axis: vt}), Ts,
-                     late="extrapolate")
+    # the continuous model, Tustin-discretised; causal through the command extrapolated from the
+    # samples before (its continuous fit has no notion of the controller's sample delay)
+    model = assemble(st, Fit(J=0.0, a=a, b=b, rms=None, feasible=True, v_tilde={axis: vt}), Ts)
     model.method = "full-ls"
     model.poles = [complex(r) for r in np.roots(a)]
     model.identification = {

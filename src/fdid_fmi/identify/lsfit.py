@@ -66,7 +66,11 @@ class LSProblem:
                 raise InputError(f"data ranges have different sample times ({self.Ts} s, {tr.Ts} s)",
                                  source=tr.source, column="time")
         self.n = structure.order
-        self.delay = np.array([ins.delay for ins in structure.inputs])
+        self.late = np.array([ins.late for ins in structure.inputs], bool)
+        if structure.same_sample is None:
+            raise InputError("LSProblem needs a same-sample prediction (structure.same_sample)",
+                             column="same_sample")
+        self.coef = rg.SAME_SAMPLE[structure.same_sample]
         self.m = len(structure.inputs)
         self.p = len(structure.outputs)
         self.segments = [self._segment(tr) for tr in traces]
@@ -148,11 +152,9 @@ class LSProblem:
         for j, o in enumerate(s.outputs):
             Z[j] = _measured_output(tr, o)
             if o.is_error:
-                # e_k = (x_r,k - x_r,k-1) + [G_e x_r]_(k-1): the known same-sample part is not
-                # fitted (causality, see regressors.py); x_r,-1 from the start ramp / run-up
+                # e_k = x_r,k - x_k and x_k uses x^_r,k (regressors.py): x_r,k - x^_r,k is known
                 c = ext[o.axis]
-                prev = np.concatenate([[c[0] - (0.0 if R else c[1] - c[0])], c[:-1]])
-                known[j] = (c - prev)[R:]
+                known[j] = rg.same_sample_part(c[None], [0.0 if R else c[1] - c[0]], self.coef)[0, R:]
         return Segment(W=W, wref=wref, dw=dw, vel=vel, pos=pos, cmd=ext, Z=Z, known=known, R=R)
 
     def fill_nonlinear_inputs(self, sg, v_tilde, override=None):
@@ -183,7 +185,11 @@ class LSProblem:
         for k, sg in enumerate(self.segments):
             W = self.fill_nonlinear_inputs(sg, v_tilde, overrides[k] if overrides else None)
             R = rg.allpole_filter(den, W, W[:, 0], sg.dw)
-            Phi = rg.regressors(R, Fu, self.n, self.delay)[:, :, sg.R:]  # (m, len(used_l), N), run-up dropped
+            Phi = rg.regressors(R, Fu, self.n)
+            if self.late.any():    # causal: D0 w[k] -> D0 w^[k] for inputs from outside
+                Phi[self.late] -= (Fu[:, 0] / den[0])[None, :, None] * \
+                    rg.same_sample_part(W[self.late], sg.dw[self.late], self.coef)[:, None, :]
+            Phi = Phi[:, :, sg.R:]                           # (m, len(used_l), N), run-up dropped
             Mt = np.empty((len(self.used), Phi.shape[2]))
             for k, (i, l) in enumerate(self.used):
                 Mt[k] = Phi[i, lpos[l]]

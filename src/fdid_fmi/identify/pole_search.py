@@ -8,6 +8,7 @@ space (Eqn 5.18-5.25) with its friction nonlinearity: a :class:`~fdid_fmi.model.
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -19,6 +20,7 @@ from ..model import DriveModel, Port, delayed_input
 from . import regressors as rg
 from .lsfit import LSProblem
 from .search import run_search
+from .regressors import SAME_SAMPLE
 from .structure import Bounds, Structure, default_bounds, siso_structure
 
 
@@ -111,6 +113,10 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
     """
     t_start = time.perf_counter()
     traces = [traces] if not isinstance(traces, (list, tuple)) else list(traces)
+    if structure.same_sample is None:
+        return _choose_same_sample(traces, structure, bounds=bounds, v_tilde=v_tilde, method=method,
+                                   seed=seed, maxiter=maxiter, popsize=popsize, progress=progress,
+                                   refine=refine)
     prob = LSProblem(traces, structure)
     Ts = prob.Ts
     fric_axes = [s.axis for s in structure.inputs if s.kind == "friction"]
@@ -144,16 +150,22 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
                          popsize=popsize, progress=progress)
         xbest, nfev, fun = par.canonical(res.x), res.nfev, res.fun
         minima = [(f, par.canonical(x)) for f, x in res.minima]
-    real, cplx, vt = par.decode(xbest)
-    fit, _ = prob.project(par.polynomial(real, cplx), vt, want_residuals=True)  # exact RMS
-    if not fit.feasible:
+    # the LS objective is nearly flat between basins that free-run very differently: the best
+    # points of the other basins the search visited within SELECT_MARGIN of the best are finished
+    # too, and the candidate with the lowest free-run error on the training data is kept
+    cands = [(fun, xbest)] + [(f, x) for f, x in minima[1:] if f <= fun * (1 + SELECT_MARGIN)][:MAX_ALTERNATIVES]
+    do_refine = refine and fric_axes and not any(o.integrators for o in structure.outputs)
+    finished = [_finish(prob, structure, par, f, par.canonical(x), do_refine) for f, x in cands]
+    if finished[0] is None:
         raise InputError("no feasible model in the search space (every candidate had a friction gain "
                          "of the wrong sign); widen the bounds or check the friction structure",
                          source=traces[0].source, column="bounds")
-    model = assemble(structure, fit, Ts)
-    refinement = None
-    if refine and fric_axes and not any(o.integrators for o in structure.outputs):
-        model, fit, refinement = refine_friction(prob, model, fit)
+    cands = [c for c, f in zip(cands, finished) if f is not None]
+    finished = [f for f in finished if f is not None]
+    best = min(range(len(finished)), key=lambda k: finished[k]["free_run"])
+    model, fit, refinement, (real, cplx, vt) = (finished[best][k] for k in ("model", "fit", "refinement", "params"))
+    if len(finished) > 1:
+        fun, xbest = cands[best][0], par.canonical(cands[best][1])
     model.poles = rg.poles_from_parameters(list(real) + list(structure.locked_real_hz),
                                            list(cplx) + list(structure.locked_complex))
     model.method = "mimo"
@@ -172,6 +184,8 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
                    "bounds": {"real_hz": bounds.real_hz, "omega_hz": bounds.omega_hz,
                               "zeta": bounds.zeta, "v_tilde": bounds.v_tilde}},
         "minima": [{"objective": f, **_describe(par, x)} for f, x in minima],
+        "candidates": [{"objective": c["objective"], "selection_free_run": c["free_run"],
+                        **_describe(par, c["x"]), "chosen": k == best} for k, c in enumerate(finished)],
     }
     model.metrics = {
         "objective_scaled_rms": fit.J,
@@ -205,20 +219,70 @@ def identify_siso(traces, axis="x", integral_action=True, v_tilde=None, bounds=N
     return model
 
 
+def _choose_same_sample(traces, structure, **kw):
+    """Identify with each same-sample prediction (``regressors.SAME_SAMPLE``) and keep the model
+    with the lower free-run error of its position-type outputs on the training data: whether the
+    drive looks one sample ahead (feed-forward) is a property of the drive, seen in its data."""
+    t0 = time.perf_counter()
+    fits = {}
+    for name in SAME_SAMPLE:
+        m = identify_mimo(traces, dataclasses.replace(structure, same_sample=name), **kw)
+        fits[name] = (next(c["selection_free_run"] for c in m.identification["candidates"] if c["chosen"]), m)
+    name = min(fits, key=lambda k: fits[k][0])
+    model = fits[name][1]
+    model.identification["same_sample_choice"] = {"chosen": name,
+                                                  "selection_free_run": {k: v[0] for k, v in fits.items()}}
+    model.metrics["wall_time_s"] = time.perf_counter() - t0
+    return model
+
+
+SELECT_MARGIN = 0.05     # alternative minima within 5 % of the best LS objective are finished
+MAX_ALTERNATIVES = 8
+POSITION_KINDS = ("position", "error", "tool_position", "tool_error")
+
+
+def _finish(prob, structure, par, fun, x, refine):
+    """One search minimum as a model: LS projection, assembly, friction refinement, and the
+    free-run objective on the training data that ranks the candidates (None if infeasible)."""
+    real, cplx, vt = par.decode(x)
+    fit, _ = prob.project(par.polynomial(real, cplx), vt, want_residuals=True)  # exact RMS
+    if not fit.feasible:
+        return None
+    model = assemble(structure, fit, prob.Ts)
+    refinement = None
+    if refine:
+        model, fit, refinement = refine_friction(prob, model, fit)
+    sel = _selection_outputs(structure)
+    free_run = free_run_objective(prob, model, sel)[0] if sel else float(fun)
+    return {"model": model, "fit": fit, "refinement": refinement, "params": (real, cplx, vt),
+            "objective": float(fun), "free_run": float(free_run), "x": x}
+
+
 # ------------------------------------------------------------------ refinement
-def free_run_objective(prob, model):
-    """Free-run counterpart of the LS objective: RMS over the fitted outputs, each scaled by
-    W_z, of measured - simulated (the model driven by the commands alone)."""
+def free_run_objective(prob, model, outputs=None):
+    """Free-run counterpart of the LS objective: RMS over the fitted outputs (or the indices
+    ``outputs`` of them), each scaled by W_z, of measured - simulated (the model driven by the
+    commands alone)."""
     from ..simulate import simulate
     names = [p.name for p in model.outputs]
+    js = range(prob.p) if outputs is None else outputs
     total, sims = 0.0, []
     for tr, sg in zip(prob.traces, prob.segments):
         sim = simulate(model, tr)
         sims.append(sim)
-        for j, o in enumerate(prob.s.outputs):
-            r = sg.Z[j] - sim.y[:, names.index(o.name)]
+        for j in js:
+            r = sg.Z[j] - sim.y[:, names.index(prob.s.outputs[j].name)]
             total += float(r @ r) / prob.Wz[j] ** 2
-    return float(np.sqrt(total / (prob.N * prob.p))), sims
+    return float(np.sqrt(total / (prob.N * max(1, len(js))))), sims
+
+
+def _selection_outputs(structure):
+    """Fitted outputs that rank search candidates: the position-type ones (what a twin is judged
+    by: tracking, contour and tool-side errors), else every output; none when the fit is only
+    through appended integrators (its fitted signal has no free-run counterpart)."""
+    plain = [j for j, o in enumerate(structure.outputs) if not o.integrators]
+    pos = [j for j in plain if structure.outputs[j].kind in POSITION_KINDS]
+    return pos or plain
 
 
 def refine_friction(prob, model, fit, bands=(1.0, 0.1, 0.01), iterations=2):
@@ -273,7 +337,7 @@ def _with_v_tilde(model, vt):
 
 
 # ------------------------------------------------------------------ assembly
-def assemble(structure: Structure, fit, Ts, late="shift"):
+def assemble(structure: Structure, fit, Ts):
     """Unscaled discrete state space of a fit (Eqn 5.18-5.25) as a DriveModel.
 
     One SIMO block (A0, B0, C0, D0) per input (Eqn 5.22); each output row is the numerator-weighted
@@ -281,38 +345,31 @@ def assemble(structure: Structure, fit, Ts, late="shift"):
     numerators (Eqn 5.26-5.29). Derived outputs complete each axis: position = x_r - error (or
     the reverse), so every axis has a position, an error and (through the simulator) a velocity.
 
-    ``late`` says how inputs from outside the drive become causal (DESIGN.md): ``"shift"``, the
-    numerators were fitted on regressors one sample late (``lsfit``, the pole search);
-    ``"extrapolate"``, a continuous model fitted elsewhere (Full LS) keeps its Tustin form and
-    only its same-sample term D u[k] uses the linear extrapolation 2 u[k-1] - u[k-2]
-    (:func:`extrapolate_late_inputs`).
+    Causal (DESIGN.md): the same-sample term of inputs from outside the drive uses their
+    prediction from earlier samples (``structure.same_sample``, :func:`extrapolate_late_inputs`),
+    as the pole search's LS was fitted (``lsfit``, ``regressors.same_sample_part``).
     """
+    if structure.same_sample not in SAME_SAMPLE:
+        raise InputError("assembling a model needs the same-sample prediction of its commands "
+                         f"(structure.same_sample one of {sorted(SAME_SAMPLE)})", column="same_sample")
     n = len(fit.a) - 1
     den, F = rg.tustin_basis(fit.a, Ts)
     ins = structure.inputs
     m = len(ins)
-    shift = late == "shift"
-    # delayed blocks: n+1 states and D0 = 0
-    blocks = [rg.simo_realisation(den, F, s.delay if shift else 0) for s in ins]
-    A = block_diag(*[blk[0] for blk in blocks])
-    B = block_diag(*[blk[1] for blk in blocks])
-    start = np.concatenate([[0], np.cumsum([blk[0].shape[0] for blk in blocks])])
+    A0, B0, C0, D0 = rg.simo_realisation(den, F)
+    A = block_diag(*([A0] * m))
+    B = block_diag(*([B0] * m))
     rows_C, rows_D, outs = [], [], []
     cmd_col = {s.axis: i for i, s in enumerate(ins) if s.kind == "command"}
     for o in structure.outputs:
-        c = np.zeros(start[-1])
+        c = np.zeros(n * m)
         d = np.zeros(m)
         for i, s in enumerate(ins):
             b = fit.b[(o.name, s.name)]
             if o.integrators:
                 b = np.concatenate([np.zeros(o.integrators), b[: n + 1 - o.integrators]])   # Eqn 5.29
-            _, _, C0, D0 = blocks[i]
-            c[start[i]:start[i + 1]] = b @ C0
+            c[i * n:(i + 1) * n] = b @ C0
             d[i] = (b @ D0)[0]
-            if shift and o.is_error and s.kind == "command" and s.axis == o.axis:
-                # + x_r,k - x_r,k-1 (lsfit: the known part); x_r,k-1 = den . [r_k-1 .. r_k-1-n]
-                c[start[i]:start[i + 1]] -= den
-                d[i] += 1.0
         rows_C.append(c)
         rows_D.append(d)
         kind = {"tool_error": "other"}.get(o.predicts, o.predicts)
@@ -365,36 +422,37 @@ def assemble(structure: Structure, fit, Ts, late="shift"):
                                  f"measured input '{s.channel}'"))
         else:
             in_ports.append(Port(s.name, "1", "feature", s.axis, dict(s.params), "nonlinear feature"))
-    C, D = np.array(rows_C), np.array(rows_D)
-    if not shift:
-        A, B, C, D = extrapolate_late_inputs(A, B, C, D, in_ports, outs)
+    A, B, C, D = extrapolate_late_inputs(A, B, np.array(rows_C), np.array(rows_D), in_ports, outs,
+                                         rg.SAME_SAMPLE[structure.same_sample])
     return DriveModel(Ts=Ts, A=A, B=B, C=C, D=D, inputs=in_ports, outputs=outs)
 
 
-def extrapolate_late_inputs(A, B, C, D, inputs, outputs):
-    """Causal form of a Tustin model: D u[k] -> D (2 u[k-1] - u[k-2]) for outside inputs.
+def extrapolate_late_inputs(A, B, C, D, inputs, outputs, coef):
+    """Causal form of a state space: D u[k] -> D u^[k] for inputs from outside the drive.
 
-    Tustin assumes inputs linear between samples; the same assumption predicts u[k] from the
-    two samples before, which the outputs then use instead of u[k] itself (two registers per
-    such input; the state update keeps the true u[k]). Error outputs keep e[k] = x_r[k] - x[k].
+    u^[k] = sum_j coef[j] u[k-1-j] (``regressors.SAME_SAMPLE``), held in one register per
+    coefficient and such input; the state update keeps the true u[k]. Error outputs keep
+    e[k] = x_r[k] - x[k]: their same-sample gain on the own command is 1, the rest of it moves
+    to the registers.
     """
+    coef = np.asarray(coef, float)
+    q = len(coef)
     late = [i for i, p in enumerate(inputs) if delayed_input(p.kind, p.params) and np.any(D[:, i])]
     n = A.shape[0]
-    A2 = np.zeros((n + 2 * len(late),) * 2)
+    A2 = np.zeros((n + q * len(late),) * 2)
     A2[:n, :n] = A
     B2 = np.zeros((A2.shape[0], B.shape[1]))
     B2[:n] = B
-    C2 = np.hstack([C, np.zeros((C.shape[0], 2 * len(late)))])
+    C2 = np.hstack([C, np.zeros((C.shape[0], q * len(late)))])
     D2 = D.copy()
     for j, i in enumerate(late):
-        r1, r2 = n + 2 * j, n + 2 * j + 1           # u[k-1], u[k-2]
-        B2[r1, i] = 1.0
-        A2[r2, r1] = 1.0
-        for o, q in enumerate(outputs):
-            own = q.kind == "error" and inputs[i].kind == "command" and q.axis == inputs[i].axis
-            delta = D[o, i] - (1.0 if own else 0.0)
-            C2[o, r1] += 2.0 * delta
-            C2[o, r2] -= delta
+        r = n + q * j                               # registers u[k-1], u[k-2], u[k-3]
+        B2[r, i] = 1.0
+        for s in range(1, q):
+            A2[r + s, r + s - 1] = 1.0
+        for o, p in enumerate(outputs):
+            own = p.kind == "error" and inputs[i].kind == "command" and p.axis == inputs[i].axis
+            C2[o, r:r + q] += (D[o, i] - (1.0 if own else 0.0)) * coef
             D2[o, i] = 1.0 if own else 0.0
     return A2, B2, C2, D2
 
@@ -445,4 +503,4 @@ def _structure_dict(s):
             "mask": {f"{k[0]}|{k[1]}": list(v) for k, v in s.mask.items()},
             "dc_gain": {f"{k[0]}|{k[1]}": list(v) for k, v in s.dc_gain.items()},
             "friction_sign": {f"{k[0]}|{k[1]}": v for k, v in s.friction_sign.items()},
-            "velocity": s.velocity, "ma_order": s.ma_order}
+            "velocity": s.velocity, "ma_order": s.ma_order, "same_sample": s.same_sample}

@@ -23,6 +23,20 @@ the regressors one sample late, phi_l[k-1] (``delay=1``). Their SIMO filter then
 model's prediction for the end of that step. Friction inputs are functions of the model's own
 state and stay in the same sample (``delay=0``), so the friction loop is still solved exactly.
 
+Causality (DESIGN.md): an FMU read after ``doStep`` cannot know the command of the sample it
+is read at. The Tustin filters have a same-sample term D0 w[k] (D0 = F[:, 0] / den[0]); for
+inputs from outside the drive (commands, measured external inputs) it uses w^[k], predicted
+from the samples before (:data:`SAME_SAMPLE`):
+
+``hold``       w^[k] = w[k-1]: a sampled drive without look-ahead answers a command one cycle
+               later, and nothing of w[k] is needed;
+``quadratic``  w^[k] = 3 w[k-1] - 3 w[k-2] + w[k-3] (exact for constant acceleration, error
+               the third difference ~ jerk Ts^3): a CNC's feed-forward looks one sample ahead,
+               so the response does depend on w[k], which this predicts.
+
+The LS is fitted on exactly these causal regressors (:func:`same_sample_part`); which one a
+drive needs is chosen from its data (``pole_search.identify_mimo``).
+
 Initial conditions: every record may start in motion. The filters start in the steady state of
 a ramp w[k] = w0 + k dw extended to k < 0 (w0, dw from the first samples), which for a record at
 rest is simply "at rest at the first value". The same steady ramp is used by the simulator.
@@ -109,6 +123,29 @@ def ramp_start(w):
     """(w0, dw) of the steady ramp a signal starts on (first value, first increment)."""
     w = np.asarray(w, float)
     return w[..., 0], (w[..., 1] - w[..., 0]) if w.shape[-1] > 1 else np.zeros_like(w[..., 0])
+
+
+SAME_SAMPLE = {"hold": (1.0,), "quadratic": (3.0, -3.0, 1.0)}   # w^[k] from w[k-1], w[k-2], ...
+
+
+def same_sample_part(W, dw, coef):
+    """w[k] - w^[k] of each input, from its steady start ramp.
+
+    Parameters
+    ----------
+    W : (m, N) inputs; dw : (m,) ramp increment before the first sample
+    coef : the prediction w^[k] = sum_j coef[j] w[k-1-j] (a value of :data:`SAME_SAMPLE`)
+
+    Returns
+    -------
+    (m, N): what the prediction misses; a causal regressor is phi_l - D0_l (w - w^)
+    """
+    W = np.atleast_2d(np.asarray(W, float))
+    k = len(coef)
+    hist = W[:, :1] + np.asarray(dw, float).reshape(-1, 1) * np.arange(-k, 0)
+    ext = np.concatenate([hist, W], axis=1)
+    pred = sum(c * ext[:, k - 1 - j: ext.shape[1] - 1 - j] for j, c in enumerate(coef))
+    return W - pred
 
 
 def allpole_filter(den, W, w0=None, dw=None):

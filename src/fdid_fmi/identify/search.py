@@ -7,7 +7,8 @@ The thesis used MATLAB GlobalSearch / MultiStart / pattern search; here the user
 ``direct``      scipy.optimize.direct (deterministic DIRECT pattern search), then polished
 
 Every method is deterministic for a given seed and keeps the distinct local minima it found,
-ranked by objective (thesis section 7.2.2: all local minima were kept and tested).
+ranked by objective, among all the points it evaluated (thesis section 7.2.2: all local minima
+were kept and tested).
 
 Search vector: [log10 p_k (Hz), log10 omega_k (Hz), zeta_k, log10 v_tilde (mm/s) per axis].
 Pole sets are put in canonical order (real poles ascending, complex pairs by omega; a pair with
@@ -39,6 +40,7 @@ class _Counter:
 
     def __init__(self, fun, progress, total, desc):
         self.fun, self.nfev, self.n_finite = fun, 0, 0
+        self.seen = []         # every finite (value, point): the basins the search visited
         self.bar = None
         if progress:
             from tqdm.auto import tqdm
@@ -54,6 +56,7 @@ class _Counter:
         if not np.isfinite(v):
             return np.inf      # a NaN objective would stall the optimisers; see run_search
         self.n_finite += 1
+        self.seen.append((v, np.array(x)))
         return v
 
     def close(self):
@@ -148,5 +151,7 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
                          f"({cnt.nfev} evaluated, every one NaN or infinite); the data are probably "
                          f"out of range (positions in mm, velocities in mm/s: check the units and "
                          f"the scale of the trace)", column="pole search")
-    return SearchResult(x=np.asarray(best[1]), fun=float(best[0]), minima=distinct_minima(pts, scale),
-                        nfev=cnt.nfev, method=method)
+    return SearchResult(x=np.asarray(best[1]), fun=float(best[0]),
+                        minima=distinct_minima(pts + cnt.seen, scale, rtol=0.1), nfev=cnt.nfev,
+                        method=method)
+

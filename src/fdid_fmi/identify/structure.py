@@ -16,6 +16,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..model import delayed_input
+from .regressors import SAME_SAMPLE
 
 INPUT_SOURCES = ("command", "friction", "external", "feature")
 # output kind -> trace role it is measured from (integrators: how many appended to predict it)
@@ -41,10 +42,11 @@ class InputSpec:
     name: str | None = None
 
     @property
-    def delay(self):
-        """1 for inputs from outside the drive (their regressors are one sample late, see
-        ``model.delayed_input``), 0 for functions of the model's own state."""
-        return int(delayed_input(self.kind, self.params))
+    def late(self):
+        """True for inputs from outside the drive (``model.delayed_input``): their same-sample
+        term uses the extrapolation of earlier samples (regressors.py); False for functions of
+        the model's own state."""
+        return delayed_input(self.kind, self.params)
 
     def __post_init__(self):
         if self.kind not in INPUT_SOURCES:
@@ -134,6 +136,9 @@ class Structure:
                central difference (section 4.3); either followed by a centred moving average of
                ``ma_order`` samples (1 = none)
     ma_order : moving-average order for the measured velocity
+    same_sample : how the same-sample term of commands and external inputs is predicted from
+               earlier samples (``regressors.SAME_SAMPLE``: ``hold`` or ``quadratic``);
+               None: identify with each and keep the lower free-run error on the training data
     """
 
     inputs: list
@@ -147,6 +152,7 @@ class Structure:
     friction_sign: dict = field(default_factory=dict)
     velocity: str = "backward"
     ma_order: int = 1
+    same_sample: str | None = None
 
     @property
     def order(self):
@@ -185,6 +191,9 @@ class Structure:
         for s in self.inputs:
             if s.kind in ("friction", "feature") and s.axis not in self.axes:
                 raise InputError(f"input {s.name} needs the command input of axis {s.axis}", column=s.name)
+        if self.same_sample is not None and self.same_sample not in SAME_SAMPLE:
+            raise InputError(f"same-sample prediction must be one of {sorted(SAME_SAMPLE)}, got "
+                             f"{self.same_sample!r}", column="same_sample")
         if self.velocity not in ("backward", "central"):
             raise InputError(f"velocity estimate must be 'backward' or 'central', got '{self.velocity}'",
                              column="velocity")
@@ -202,7 +211,7 @@ def default_bounds(Ts, n_real, n_complex, zeta=(0.05, 2.0), lowest_hz=0.1):
 
 
 def siso_structure(axis="x", integral_action=True, outputs=("error",), ma_order=1, friction=True,
-                   velocity="backward"):
+                   velocity="backward", same_sample=None):
     """The rigid-body SISO model of thesis Eqn 4.10-4.15 as a structure.
 
     e = (c0 s^3 + c1 s^2 + c2 s)/P(s) x_r + d0 s/P(s) sat(v/v_tilde)     (integral action)
@@ -226,7 +235,7 @@ def siso_structure(axis="x", integral_action=True, outputs=("error",), ma_order=
             if friction:
                 mask[(o.name, ins[1].name)] = (0, 1, 2) if integral_action else (0, 1, 2, 3)
     return Structure(inputs=ins, outputs=outs, n_real=1, n_complex=1, mask=mask,
-                     friction_sign=sign, ma_order=ma_order, velocity=velocity)
+                     friction_sign=sign, ma_order=ma_order, velocity=velocity, same_sample=same_sample)
 
 
 def default_mask(out_kind, in_kind, n, integral_action=True):
@@ -252,7 +261,8 @@ def default_mask(out_kind, in_kind, n, integral_action=True):
 
 def mimo_structure(axes=("x",), outputs=("error",), n_real=1, n_complex=1, coupled=False,
                    friction=True, integral_action=True, integrators=None, dc_gain=None,
-                   locked_complex=(), locked_real=(), velocity="backward", ma_order=1, externals=()):
+                   locked_complex=(), locked_real=(), velocity="backward", ma_order=1, externals=(),
+                   same_sample=None):
     """Build a MIMO structure (thesis Figure 5-3 / 5-12 / 7-8).
 
     Parameters
@@ -265,6 +275,7 @@ def mimo_structure(axes=("x",), outputs=("error",), n_real=1, n_complex=1, coupl
         predicts the tool-side position from a fitted tool acceleration)
     dc_gain : dict output kind -> (q, value) for the own-axis command input (Eqn 5.15)
     externals : extra trace channels used as inputs (each with its own numerator)
+    same_sample : ``hold``, ``quadratic`` or None (chosen from the data), see :class:`Structure`
     """
     integrators = integrators or {}
     dc_gain = dc_gain or {}
@@ -297,4 +308,5 @@ def mimo_structure(axes=("x",), outputs=("error",), n_real=1, n_complex=1, coupl
                 dcg[(o.name, s.name)] = tuple(dc_gain[o.kind])
     return Structure(inputs=ins, outputs=outs, n_real=n_real, n_complex=n_complex,
                      locked_real_hz=list(locked_real), locked_complex=list(locked_complex), mask=mask,
-                     dc_gain=dcg, friction_sign=sign, velocity=velocity, ma_order=ma_order)
+                     dc_gain=dcg, friction_sign=sign, velocity=velocity, ma_order=ma_order,
+                     same_sample=same_sample)
