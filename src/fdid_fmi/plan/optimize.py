@@ -225,14 +225,14 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
                          "is in their plane", column="axes")
 
     def run(ov):
+        tick()
         return predict(interpolate(program, limits, Ts, overrides=ov), tol_mm=tol_mm, program=program, **twin)
 
     cutting = [b.index for b in program.blocks if b.kind in ("line", "arc") and b.length > 0]
     bar = None
     if progress:
         from tqdm import tqdm
-        bar = tqdm(total=len(cutting) + 10, desc="feed optimisation (blocks, then uniform override)",
-                   leave=False)
+        bar = tqdm(desc="feed optimisation", unit=" twin runs", leave=False)
 
     def tick():
         if bar is not None:
@@ -241,79 +241,21 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
     if before is None:
         before = run({})
     fp = first_pass(program, limits, Ts, qs, axes, tol_mm, min_override)
-    f = dict(fp)
     blocks = program.blocks
     sims = 0
 
-    def local_error(b, fb, with_next=True):
-        """Largest |contour error| in the window of block b (and of block b+1) when the program
-        from block b-1 to b+1 runs alone: b-1 at its chosen override, b+1 at half its first-pass
-        override (so that its own error stays small and what its window shows is mostly the lag
-        block b leaves at the corner)."""
-        nonlocal sims
-        lo_i, hi_i = max(0, b - 1), min(len(blocks), b + 2)
-        part = blocks[lo_i:hi_i]
-        sub = Program(blocks=[_reindex(bb, k) for k, bb in enumerate(part)], start=part[0].start,
-                      source=program.source)
-        ov = {k: (fb if bb.index == b else f.get(bb.index, 1.0) * (0.5 if bb.index > b else 1.0))
-              for k, bb in enumerate(part)}
-        pr = predict(interpolate(sub, limits, Ts, overrides=ov, settle=0.2), tol_mm=tol_mm, program=sub, **twin)
-        sims += 1
-        return max(_block_max(pr, k) for k, bb in enumerate(part)
-                   if bb.index == b or (with_next and bb.index > b))
+    def feasible(pr):
+        return all(_block_max(pr, b) <= tol_mm for b in cutting)
 
-    def search(b, with_next):
-        """Largest override in [min_override, 1] within tol (bracket, then bisection)."""
-        if local_error(b, f[b], with_next) <= tol_mm:
-            lo, hi = f[b], 1.0
-            if lo < 1.0 and local_error(b, 1.0, with_next) <= tol_mm:
-                return 1.0
-        else:
-            lo, hi, g = 0.0, f[b], f[b]
-            while g > min_override:
-                g = max(min_override, g * 0.6)
-                if local_error(b, g, with_next) <= tol_mm:
-                    lo = g
-                    break
-                hi = g
-            if lo == 0.0:
-                return None
-        while hi / lo > 1 + rel_tol:
-            mid = math.sqrt(lo * hi)
-            lo, hi = (mid, hi) if local_error(b, mid, with_next) <= tol_mm else (lo, mid)
-        return lo
-
-    for b in cutting:
-        g = search(b, True)
-        if g is None:           # the next window is over tol whatever this block does: its own problem
-            g = search(b, False)
-        f[b] = min_override if g is None else g
-        tick()
-    it = sims
-    # final check of the whole program with the chosen feeds
-    after = run(f)
-    for _ in range(8):
-        bad = [b for b in cutting if _block_max(after, b) > tol_mm and f[b] > min_override]
-        if not bad:
-            break
-        for b in bad:
-            f[b] = max(min_override, 0.9 * f[b])
-            i = cutting.index(b)
-            if i > 0:
-                f[cutting[i - 1]] = max(min_override, 0.95 * f[cutting[i - 1]])
-        after = run(f)
-    reachable = all(_block_max(after, b) <= tol_mm for b in cutting)
-    # uniform reduction: one override for all cutting blocks
-    ulo, uhi = 0.0, 1.0
-    if all(_block_max(before, b) <= tol_mm for b in cutting):
+    # the uniform override that keeps every block within tol (the reference, and a safe start)
+    ulo, uhi, upr = 0.0, 1.0, None
+    if feasible(before):
         ulo, upr = 1.0, before
     else:
-        upr = None
-        g = max(min_override, min(f.values()) if f else 1.0)
+        g = max(min_override, min(fp.values()) if fp else 1.0)
         for _ in range(20):
             pr = run({b: g for b in cutting})
-            tick()
-            if all(_block_max(pr, b) <= tol_mm for b in cutting):
+            if feasible(pr):
                 ulo, upr = g, pr
             else:
                 uhi = g
@@ -325,6 +267,81 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
                 break
             else:
                 g = math.sqrt(ulo * uhi)
+
+    def local_error(f, b, fb, with_next=True):
+        """Largest |contour error| in the windows of block b (and b+1) when blocks b-1..b+1 run
+        alone with the overrides ``f`` and ``fb`` for block b: with exact stops, the lag a block
+        leaves at its end shows in the next block's window, and nothing reaches further."""
+        nonlocal sims
+        tick()
+        lo_i, hi_i = max(0, b - 1), min(len(blocks), b + 2)
+        part = blocks[lo_i:hi_i]
+        sub = Program(blocks=[_reindex(bb, k) for k, bb in enumerate(part)], start=part[0].start,
+                      source=program.source)
+        ov = {k: (fb if bb.index == b else f.get(bb.index, 1.0)) for k, bb in enumerate(part)}
+        pr = predict(interpolate(sub, limits, Ts, overrides=ov, settle=0.2), tol_mm=tol_mm, program=sub, **twin)
+        sims += 1
+        return max(_block_max(pr, k) for k, bb in enumerate(part)
+                   if bb.index == b or (with_next and bb.index > b))
+
+    def best(f, b, with_next=True):
+        """Largest override of block b in [min_override, 1] within tol, its neighbours as in f."""
+        def ok(g):
+            return local_error(f, b, g, with_next) <= tol_mm
+        if ok(f[b]):
+            lo, hi = f[b], 1.0
+            if lo >= 1.0 or ok(1.0):
+                return 1.0
+        else:
+            lo, hi, g = 0.0, f[b], f[b]
+            while g > min_override:
+                g = max(min_override, g * 0.6)
+                if ok(g):
+                    lo = g
+                    break
+                hi = g
+            if lo == 0.0:
+                return best(f, b, False) if with_next else min_override
+        while hi / lo > 1 + rel_tol:
+            mid = math.sqrt(lo * hi)
+            lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+        return lo
+
+    def sweeps(f, n=2):
+        for _ in range(n):
+            old = dict(f)
+            for b in cutting:
+                f[b] = best(f, b)
+            if all(abs(f[b] - old[b]) <= rel_tol * old[b] for b in cutting):
+                break
+        return f
+
+    def check(f):
+        """Run the whole program; lower blocks (and the one before) that still exceed tol."""
+        pr = run(f)
+        for _ in range(8):
+            bad = [b for b in cutting if _block_max(pr, b) > tol_mm and f[b] > min_override]
+            if not bad:
+                break
+            for b in bad:
+                f[b] = max(min_override, 0.9 * f[b])
+                i = cutting.index(b)
+                if i > 0:
+                    f[cutting[i - 1]] = max(min_override, 0.95 * f[cutting[i - 1]])
+            pr = run(f)
+        return f, pr
+
+    # from the quasi-static first pass: coordinate sweeps with the twin, then the whole program
+    f, after = check(sweeps(dict(fp)))
+    # never worse than the uniform override: start from it and raise block by block
+    if upr is not None and (not feasible(after) or after.interp.cycle_time > upr.interp.cycle_time):
+        f2, after2 = check(sweeps({b: ulo for b in cutting}, 1))
+        if feasible(after2) and (not feasible(after) or after2.interp.cycle_time < after.interp.cycle_time):
+            f, after = f2, after2
+        if not feasible(after) or after.interp.cycle_time > upr.interp.cycle_time:
+            f, after = {b: ulo for b in cutting}, upr
+    it = sims
+    reachable = feasible(after)
     if bar is not None:
         bar.close()
     rows = []
