@@ -16,16 +16,20 @@
    interpolator uses at that feed; the largest feed that passes (bisection) is the first guess.
 2. **Dynamic correction, block by block.** With an exact stop at every block end, a block's
    contour error depends on its own feed and on the lag the block before it leaves at the
-   corner. So, in program order, each cutting block's override is bisected (to 3 %) with the
-   twin (model or FMU) run on the block triple (previous block at its chosen feed, the block,
-   the next block at its first-pass feed): the largest override whose |contour error| stays
-   within the tolerance in the block's own window *and* in the next block's window. A last
-   run of the whole program checks the chosen feeds together and lowers any block (and the one
-   before it) that still exceeds the tolerance.
+   corner, and on nothing further away. So, in program order, each cutting block's override is
+   bracketed and bisected (to 3 %) with the twin (model or FMU) run on the block triple
+   (neighbours at their current overrides): the largest override whose |contour error| stays
+   within the tolerance in the block's own window *and* in the next block's window (a next
+   window that is over whatever this block does is left to that block). Two such sweeps from
+   the first pass, then a run of the whole program checks the feeds together and lowers any
+   block (and the one before it) that still exceeds the tolerance.
+3. **Never worse than one uniform override.** The uniform override (the largest single
+   override for all cutting blocks that keeps every block within the tolerance, by bisection
+   on the whole program) is found first; if the per-block result is slower, one sweep starts
+   from the uniform override and only raises blocks, and the faster feasible result is kept.
 
 Overrides never exceed 100 % (the programmed feed is the planner's cutting choice; rapids are
-left alone). The uniform reduction the result is compared with is the largest single override
-for all cutting blocks that keeps every block within the tolerance (bisection, same twin).
+left alone).
 """
 from __future__ import annotations
 
