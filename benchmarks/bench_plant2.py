@@ -322,16 +322,23 @@ def main():
     res = {"single_core": True, "quick": args.quick, "scenarios": names, "code": code_state(),
            "identification": [], "diagnosis": []}
     print(f"code: {res['code']}", flush=True)
+    path = OUT / "bench_plant2.json"
+
+    def save():                                   # partial results survive an interrupted run
+        path.write_text(json.dumps(res, indent=1, default=float))
+
     for name in names:
         res["identification"].append(identification(name, args.quick))
+        save()
     if not args.skip_diagnose:
         for name in names:
             res["diagnosis"].append(diagnosis(name))
+            save()
     if not args.skip_calibration and not args.skip_diagnose:
         print("\n[calibration]", flush=True)
         res["calibration"] = calibration(args.quick, res["diagnosis"])
     res["wall_s"] = time.perf_counter() - t0
-    (OUT / "bench_plant2.json").write_text(json.dumps(res, indent=1, default=float))
+    save()
     print_tables(res)
     print(f"\nwall time {res['wall_s']:.0f} s; JSON: {OUT / 'bench_plant2.json'}")
 
