@@ -252,7 +252,7 @@ def interpolate(program, limits, Ts, overrides=None, lead_in=0.05, settle=0.5, p
     it = program.blocks
     if progress:
         from tqdm import tqdm
-        it = tqdm(it, desc="interpolating", unit="block", leave=False)
+        it = tqdm(it, desc="interpolating", unit="block", leave=False, disable=None)  # None: off without a terminal
     for b in it:
         f = float(overrides.get(b.index, 1.0))
         if not f > 0:

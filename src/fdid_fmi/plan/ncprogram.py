@@ -447,12 +447,17 @@ def write_program(program, feeds_mm_s, path=None, header=None):
         if b.index in feeds_mm_s and b.kind in ("line", "arc"):
             by_line[b.line] = b
     out = []
-    if header:
-        out.append(f"({_safe_comment(header)})")
-    for row, raw in enumerate(program.lines, 1):
+    lines = list(program.lines)
+    head = f"({_safe_comment(header)})" if header else None
+    if head and not (lines and lines[0].strip().startswith("%")):
+        out.append(head)
+        head = None
+    for row, raw in enumerate(lines, 1):
         b = by_line.get(row)
         if b is None:
             out.append(raw)
+            if head and row == 1:            # after the leading '%'
+                out.append(head)
             continue
         new = float(feeds_mm_s[b.index])
         if b.inverse_time:
@@ -471,31 +476,25 @@ def _safe_comment(s):
 
 
 def _replace_f(raw, fword):
-    """Replace (or append) the F word in the code part of a line, leaving comments alone."""
-    code_end = len(raw)
-    depth = 0
-    for k, c in enumerate(raw):
-        if c == "(":
-            depth = 1
-        elif c == ")":
-            depth = 0
-        elif c == ";" and not depth:
-            code_end = k
-            break
-    # remove F words outside comments
-    pieces, k, depth, code = [], 0, 0, raw[:code_end]
+    """Replace (or add) the F word of a line: F goes after the last word, before any trailing
+    comment; comments are left as written."""
+    m = _TRAILING_COMMENT.search(raw)
+    code, tail = raw[:m.start()], raw[m.start():]
+    pieces, k, depth = [], 0, 0
     while k < len(code):
         c = code[k]
         if c == "(":
             depth = 1
         if depth == 0 and c in "Ff":
-            m = _WORD.match(code, k)
-            if m:
-                k = m.end()
+            w = _WORD.match(code, k)
+            if w:
+                k = w.end()
                 continue
         if c == ")":
             depth = 0
         pieces.append(c)
         k += 1
-    body = "".join(pieces).rstrip()
-    return f"{body} F{fword:.6g}" + (" " + raw[code_end:] if code_end < len(raw) else "")
+    return f"{''.join(pieces).rstrip()} F{fword:.6g}{tail}"
+
+
+_TRAILING_COMMENT = re.compile(r"(\s*\([^()]*\))*\s*(;.*)?$")

@@ -236,7 +236,7 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
     bar = None
     if progress:
         from tqdm import tqdm
-        bar = tqdm(desc="feed optimisation", unit=" twin runs", leave=False)
+        bar = tqdm(desc="feed optimisation", unit=" twin runs", leave=False, disable=None)  # off without a terminal
 
     def tick():
         if bar is not None:
