@@ -127,6 +127,7 @@ def test_cli_end_to_end(short, tmp_path, capsys):
     (["--acc", "ACC", "ACC"], "exactly one file per --acc"),
     (["--acc", "ACC", "--orientation", "CTRL"], "not valid JSON"),
     ([], "give at least one sensor"),
+    (["--acc", "ACC", "--range", "0:1"], "--range does not apply"),
 ])
 def test_cli_errors_are_one_line(short, tmp_path, capsys, argv_tail, expected):
     _, run = short
@@ -173,3 +174,17 @@ def test_roles_already_present_are_replaced_and_said(short):
     assert res.trace.roles["y"]["tool"] == "y_tool_mm" and "y_tool" in res.trace.channels
     e = res.trace.get("y", "tool") - res.trace.extra("y_tool")
     assert np.sqrt(np.mean(e ** 2)) < 2e-3
+
+
+def test_sensors_on_one_axis_add_with_their_sign(short):
+    """Head - table (thesis ch. 7.2.1): two records of one axis add with their signs; the same
+    record as +1 and -1 cancels, and each alone equals the single-sensor alignment."""
+    _, run = short
+    p = run["sensors"]["acc_tool"]
+    plus = read_accelerometer(p, axes=("x", "y"), name="plus")
+    minus = read_accelerometer(p, axes=("x", "y"), name="minus", sign=-1)
+    both = align(_ctrl(run), [plus, minus])
+    single = align(_ctrl(run), [plus])
+    assert np.max(np.abs(both.trace.get("y", "acc"))) < 1e-9
+    assert np.max(np.abs(single.trace.get("y", "acc"))) > 1000.0
+    assert both.sensor("minus").get("alpha").value == pytest.approx(single.sensor("plus").get("alpha").value)

@@ -121,6 +121,9 @@ def run(args):
     check_output(args.output, inputs=inputs, what="aligned trace")
     if args.json:
         check_output(args.json, inputs=inputs + [args.output], what="JSON file")
+    if getattr(args, "range", None):
+        raise InputError("--range does not apply to fdid align (the whole record is aligned); give it "
+                         "to fdid identify / diagnose on the aligned trace", source="--range")
     ctrl = trace_from_args(args.controller, args)
     records = [read_sensor(**s) for s in specs]
     orient = load_orientation(args.orientation) if args.orientation else None
