@@ -107,9 +107,9 @@ def test_feed_optimisation_within_tol_and_faster_than_uniform(machine, planned):
     assert fp.before.summary["contour_max_um"] > tol * 1e3          # the programmed feeds are too fast
     for r in fp.rows:
         assert r["contour_max_after_um"] <= tol * 1e3
-    # checked independently on the virtual drive itself (5 % margin for the model's error)
+    # checked independently on the virtual drive itself (the feeds aim 2 % below tol)
     ip2 = interpolate(prog, LIMITS, model.Ts, overrides=fp.overrides)
-    assert np.abs(_virtual_contour(cfg, ip2)).max() <= 1.05 * tol
+    assert np.abs(_virtual_contour(cfg, ip2)).max() <= tol
     assert fp.after.interp.cycle_time < fp.uniform_cycle_time_s
     assert fp.uniform_override < 1.0
 

@@ -32,6 +32,8 @@ def register(sub):
                    help="use the controller's interpolated setpoints (cmd channels of TRACE) instead of interpolating")
     p.add_argument("--tol", type=float, default=None, help="contour tolerance [mm]: blocks above it are flagged")
     p.add_argument("--optimize", action="store_true", help="find per-block feeds within --tol (needs --tol)")
+    p.add_argument("--margin", type=float, default=0.02,
+                   help="the optimised feeds aim at tol x (1 - margin), room for the twin's error (default 0.02)")
     p.add_argument("-o", "--output", default=None, help="write the optimised NC program here")
     p.add_argument("--report", default=None, help="HTML report")
     p.add_argument("--json", default=None, help="JSON with every table and figure's data")
@@ -127,7 +129,7 @@ def run(args):
                              column="--optimize")
         from ..plan.optimize import optimize_feeds
         from ..plan.ncprogram import write_program
-        fpl = optimize_feeds(prog, lim, Ts, args.tol, progress=True, before=pr, **twin)
+        fpl = optimize_feeds(prog, lim, Ts, args.tol, margin=args.margin, progress=True, before=pr, **twin)
         print(f"\nfeed optimisation (tol {args.tol * 1e3:.3g} µm): cycle time {fpl.before.interp.cycle_time:.3f} s "
               f"(programmed) -> {fpl.after.interp.cycle_time:.3f} s (per-block feeds, contour MAX "
               f"{fpl.after.summary['contour_max_um']:.2f} µm); uniform override "

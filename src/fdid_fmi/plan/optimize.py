@@ -193,7 +193,7 @@ def _block_max(pr, idx):
     return float(np.max(np.abs(pr.contour[sel]))) if sel.any() else 0.0
 
 
-def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, max_iter=10,
+def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, margin=0.02,
                    rel_tol=0.03, min_override=0.05, progress=False, before=None):
     """Per-block feed overrides within ``tol_mm`` of contour error (see module docstring).
 
@@ -203,6 +203,8 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
     limits : dict axis -> AxisLimits
     Ts : float, s
     tol_mm : float, contour tolerance (mm)
+    margin : float   the feeds aim at tol_mm * (1 - margin): room for the twin's own error
+        (about 1 % of the contour error on the virtual machine, benchmarks/bench_plan.py)
     model : DriveModel (also gives the quasi-static gains), or
     fmu : path of an fdid FMU (then ``qs`` or the FMU's shipped model gives the gains)
     qs : QuasiStaticModel, optional (default: :func:`quasi_static_gains` of the model)
@@ -214,6 +216,9 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
     """
     if not (tol_mm > 0 and math.isfinite(tol_mm)):
         raise InputError(f"--tol must be > 0, got {tol_mm!r}", column="--tol")
+    if not 0 <= margin < 1:
+        raise InputError(f"--margin must be in [0, 1), got {margin!r}", column="--margin")
+    target = tol_mm * (1.0 - margin)
     if model is None and fmu is None:
         raise InputError("give a model or an FMU", column="--model/--fmu")
     twin = dict(model=model, fmu=fmu)
@@ -244,12 +249,12 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
 
     if before is None:
         before = run({})
-    fp = first_pass(program, limits, Ts, qs, axes, tol_mm, min_override)
+    fp = first_pass(program, limits, Ts, qs, axes, target, min_override)
     blocks = program.blocks
     sims = 0
 
     def feasible(pr):
-        return all(_block_max(pr, b) <= tol_mm for b in cutting)
+        return all(_block_max(pr, b) <= target for b in cutting)
 
     # the uniform override that keeps every block within tol (the reference, and a safe start)
     ulo, uhi, upr = 0.0, 1.0, None
@@ -291,7 +296,7 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
     def best(f, b, with_next=True):
         """Largest override of block b in [min_override, 1] within tol, its neighbours as in f."""
         def ok(g):
-            return local_error(f, b, g, with_next) <= tol_mm
+            return local_error(f, b, g, with_next) <= target
         if ok(f[b]):
             lo, hi = f[b], 1.0
             if lo >= 1.0 or ok(1.0):
@@ -324,7 +329,7 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
         """Run the whole program; lower blocks (and the one before) that still exceed tol."""
         pr = run(f)
         for _ in range(8):
-            bad = [b for b in cutting if _block_max(pr, b) > tol_mm and f[b] > min_override]
+            bad = [b for b in cutting if _block_max(pr, b) > target and f[b] > min_override]
             if not bad:
                 break
             for b in bad:
@@ -345,7 +350,7 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
         if not feasible(after) or after.interp.cycle_time > upr.interp.cycle_time:
             f, after = {b: ulo for b in cutting}, upr
     it = sims
-    reachable = feasible(after)
+    reachable = all(_block_max(after, b) <= tol_mm for b in cutting)
     if bar is not None:
         bar.close()
     rows = []
