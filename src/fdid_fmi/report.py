@@ -275,7 +275,7 @@ def add_model_section(rep, model, fmu=None, validation=None, heading="The identi
             zeros = sys_.zeros()
         except Exception:  # noqa: BLE001 - MIMO zeros need slycot; show poles only
             zeros = np.array([])
-        fig, ax2 = plt.subplots(figsize=(5.5, 5.5))
+        fig, (ax2, ax3) = plt.subplots(1, 2, figsize=(11, 5))
         th = np.linspace(0, 2 * np.pi, 400)
         ax2.plot(np.cos(th), np.sin(th), "k:", lw=0.8)
         ax2.plot(poles.real, poles.imag, "x", ms=9, label="poles")
@@ -286,9 +286,36 @@ def add_model_section(rep, model, fmu=None, validation=None, heading="The identi
         ax2.set_aspect("equal")
         ax2.legend(fontsize=8)
         ax2.grid(alpha=0.3)
+        ax2.set_title("z plane (unit circle: stability limit)", fontsize=9)
+
+        def to_hz(z):
+            z = np.asarray(z, complex)
+            keep = (np.abs(z) > 1e-6) & ~((np.abs(z.imag) < 1e-12) & (z.real < 0))
+            return np.log(z[keep]) / model.Ts / (2 * np.pi)
+
+        ps, zs = to_hz(poles), to_hz(zeros)
+        reach = 3 * max(np.max(np.abs(ps)) if ps.size else 1.0, 1e-9)
+        n_far = int(np.sum(np.abs(zs) > reach))
+        zs = zs[np.abs(zs) <= reach]                 # fast zeros far left would hide the poles
+        ax3.plot(ps.real, ps.imag, "x", ms=9, label="poles")
+        if zs.size:
+            ax3.plot(zs.real, zs.imag, "o", mfc="none", ms=8, label="zeros")
+        ax3.axvline(0, color="k", lw=0.8, ls=":")
+        ax3.set_xlabel("Re s / 2π [Hz]")
+        ax3.set_ylabel("Im s / 2π [Hz]")
+        ax3.legend(fontsize=8)
+        ax3.grid(alpha=0.3)
+        ax3.set_title("the same, mapped to continuous time, s = ln(z) / Ts", fontsize=9)
         rep.add_figure("model_pzmap", fig, data={"poles_re": poles.real, "poles_im": poles.imag,
-                                                 "zeros_re": np.real(zeros), "zeros_im": np.imag(zeros)},
-                       caption="pole-zero map in the z plane (python-control; unit circle dotted: inside = stable)")
+                                                 "zeros_re": np.real(zeros), "zeros_im": np.imag(zeros),
+                                                 "poles_s_re_hz": ps.real, "poles_s_im_hz": ps.imag},
+                       caption="pole-zero map of the linear part (python-control): left in the z plane "
+                               "(inside the unit circle = stable), right mapped to continuous time in Hz "
+                               "(left of the dotted line = stable; the distance from the origin is the "
+                               "pole's frequency). Delay poles at z = 0 and zeros on the negative real "
+                               "axis have no continuous equivalent and are left out on the right"
+                               + (f", as are {n_far} zero(s) more than 3x farther out than the fastest pole."
+                                  if n_far else "."))
     if fmu is not None:
         _fmu_variables(rep, fmu)
     if validation is not None:
