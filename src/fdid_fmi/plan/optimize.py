@@ -34,7 +34,9 @@ left alone).
 from __future__ import annotations
 
 import math
+import tempfile
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -221,6 +223,16 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
     target = tol_mm * (1.0 - margin)
     if model is None and fmu is None:
         raise InputError("give a model or an FMU", column="--model/--fmu")
+    if fmu is not None and Path(fmu).is_file():
+        # unpack once: every twin run then starts from the extracted folder
+        import fmpy
+        with tempfile.TemporaryDirectory(prefix="fdid_plan_") as tmp:
+            fmpy.extract(str(fmu), tmp)
+            plan = optimize_feeds(program, limits, Ts, tol_mm, model=model, fmu=tmp,
+                                  qs=qs if qs is not None else quasi_static_gains(_fmu_model(fmu)),
+                                  margin=margin, min_override=min_override, rel_tol=rel_tol,
+                                  progress=progress, before=before)
+        return plan
     twin = dict(model=model, fmu=fmu)
     if qs is None:
         if model is None:
@@ -380,3 +392,8 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
 def _reindex(block, k):
     from dataclasses import replace
     return replace(block, index=k)
+
+
+def _fmu_model(fmu):
+    from .predict import model_from_fmu
+    return model_from_fmu(fmu)

@@ -157,9 +157,13 @@ def model_from_fmu(fmu_path):
     import json
     import zipfile
     from ..model import DriveModel
+    from pathlib import Path
     try:
-        with zipfile.ZipFile(fmu_path) as zf:
-            d = json.loads(zf.read("resources/model.json"))
+        if Path(fmu_path).is_dir():           # an extracted FMU
+            d = json.loads((Path(fmu_path) / "resources" / "model.json").read_text())
+        else:
+            with zipfile.ZipFile(fmu_path) as zf:
+                d = json.loads(zf.read("resources/model.json"))
     except (KeyError, OSError, zipfile.BadZipFile, ValueError) as exc:
         raise InputError(f"carries no readable resources/model.json ({exc})", source=str(fmu_path)) from None
     return DriveModel.from_dict(d, source=f"{fmu_path}:resources/model.json")
