@@ -112,8 +112,9 @@ def window_lags(t, ref, sens_fn, window_s=1.0, max_lag_s=0.025, min_energy=0.05,
 
     Returns
     -------
-    list of dicts ``{"t": centre (s), "lag": s, "corr": normalised peak}``; the sensor's event
-    at mapped time t_m really happened at t_m - lag.
+    list of dicts ``{"t": centre (s), "lag": s, "corr": normalised peak, "weight": energy of the
+    reference's time derivative (the lag's variance is inversely proportional to it)}``; the
+    sensor's event at mapped time t_m really happened at t_m - lag.
     """
     Ts = float(np.median(np.diff(t)))
     L = max(2, int(np.ceil(max_lag_s / Ts)))
@@ -147,8 +148,10 @@ def window_lags(t, ref, sens_fn, window_s=1.0, max_lag_s=0.025, min_energy=0.05,
         y0, y1, y2 = J[k - 1], J[k], J[k + 1]
         den = y0 - 2 * y1 + y2
         frac = 0.5 * (y0 - y2) / den if den != 0 else 0.0
+        # information about the lag: energy of the reference's slope (its variance ~ 1 / that)
+        info = float(np.sum(np.diff(r, axis=0) ** 2)) / Ts ** 2
         out.append({"t": float(0.5 * (t[i0] + t[i1 - 1])), "lag": float((k - L + frac) * Ts),
-                    "corr": float(np.sqrt(y1))})
+                    "corr": float(np.sqrt(y1)), "weight": info})
     return out
 
 
@@ -196,15 +199,20 @@ def fit_clock(lags, mapping, min_corr=0.5, min_significance=2.0, base=None):
         s_c1, res = np.nan, np.nan
         drift_ok = False
     else:
+        # weighted LS line (weights ~ 1 / variance of each window's lag, scale from the scatter)
+        w = np.array([u.get("weight", 1.0) for u in use], dtype=float)
+        w = w / w.mean() if w.mean() > 0 else np.ones(n)
+        tbar = float(np.sum(w * tw) / np.sum(w))
         X = np.column_stack([np.ones(n), tw - tbar])
-        (e0, c1), *_ = np.linalg.lstsq(X, lw, rcond=None)
+        sw = np.sqrt(w)
+        (e0, c1), *_ = np.linalg.lstsq(X * sw[:, None], lw * sw, rcond=None)
         r = lw - X @ np.array([e0, c1])
         dof = n - 2
-        res = float(np.sqrt(np.mean(r ** 2)))
+        res = float(np.sqrt(np.sum(w * r ** 2) / np.sum(w)))
         if dof > 0:
-            s2 = float(r @ r / dof)
-            s_e0 = np.sqrt(s2 / n)
-            s_c1 = np.sqrt(s2 / float(np.sum((tw - tbar) ** 2)))
+            s2 = float(np.sum(w * r ** 2) / dof)
+            s_e0 = np.sqrt(s2 / np.sum(w))
+            s_c1 = np.sqrt(s2 / float(np.sum(w * (tw - tbar) ** 2)))
         else:
             s_e0 = s_c1 = np.nan
         drift_ok = True
