@@ -137,3 +137,17 @@ def test_controller_setpoints_and_estimated_limits():
     lim = limits_from_trace(traj.as_trace())["x"]
     # the zero-phase Butterworth rings a few % above the true peaks
     assert 95.0 <= lim.v <= 102.0 and 1500.0 <= lim.a <= 2100.0 and 2e4 <= lim.j <= 1.05e5
+
+
+def test_helix_stays_on_its_helix():
+    p = parse_program("G21 G17 G90 G94 F1200\nG1 X10\nG3 X10 Y0 Z-3 I-5 J0\n")
+    ip = interpolate(p, LIMITS, TS)
+    b = p.blocks[1]
+    k0, k1 = ip.spans[1]
+    P = np.column_stack([ip.positions[a] for a in "xyz"])[k0:k1 + 1]
+    r = np.hypot(P[:, 0] - b.center[0], P[:, 1] - b.center[1])
+    assert np.abs(r - 5.0).max() < 1e-4
+    ang = np.unwrap(np.arctan2(P[:, 1] - b.center[1], P[:, 0] - b.center[0]))
+    frac = (ang - ang[0]) / (2 * np.pi)                       # full turn, counter-clockwise
+    assert np.abs(P[:, 2] - (-3.0 * frac)).max() < 1e-4       # z linear in the swept angle
+    assert b.length == pytest.approx(np.hypot(2 * np.pi * 5, 3))
