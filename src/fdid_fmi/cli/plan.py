@@ -120,7 +120,8 @@ def run(args):
     print("\n| block | line | kind | feed [mm/min] | time [s] | contour RMS [µm] | contour MAX [µm] | flag |")
     print("|---:|---:|---|---:|---:|---:|---:|---|")
     for r in pr.blocks:
-        print(f"| {r['block']} | {r['line']} | {r['kind']} | {r['feed_mm_min']:.0f} | {r['duration_s']:.3f} | "
+        feed = "rapid" if r["kind"] == "rapid" else "-" if r["kind"] == "dwell" else f"{r['feed_mm_min']:.0f}"
+        print(f"| {r['block']} | {r['line']} | {r['kind']} | {feed} | {r['duration_s']:.3f} | "
               f"{r['contour_rms_um']:.2f} | {r['contour_max_um']:.2f} | {'OVER' if r['flag'] else ''} |")
     fpl = None
     if args.optimize:
@@ -138,6 +139,8 @@ def run(args):
         print("| block | line | feed [mm/min] | new feed [mm/min] | contour MAX before / after [µm] | time before / after [s] |")
         print("|---:|---:|---:|---:|---:|---:|")
         for r in fpl.rows:
+            if r["kind"] == "rapid":
+                continue
             print(f"| {r['block']} | {r['line']} | {r['feed_mm_min']:.0f} | {r['new_feed_mm_min']:.0f} | "
                   f"{r['contour_max_before_um']:.2f} / {r['contour_max_after_um']:.2f} | "
                   f"{r['time_before_s']:.3f} / {r['time_after_s']:.3f} |")
