@@ -18,7 +18,9 @@ fixed-step RK4 with an exact bristle update, jerk-filter paths) shares no code w
 
 Writes benchmarks/results/bench_plant2.json and prints markdown tables. One core (BLAS pinned).
 
-    .venv/bin/python benchmarks/bench_plant2.py [--quick] [--scenarios a,b] [--skip-diagnose] [--skip-calibration]
+    .venv/bin/python benchmarks/bench_plant2.py [--quick] [--scenarios a,b] [--skip-identification]
+        [--skip-diagnose] [--skip-calibration] [--out NAME.json]
+    .venv/bin/python benchmarks/bench_plant2.py --print-only bench_plant2.json bench_plant2_diagnosis.json
 """
 import os
 
@@ -313,21 +315,34 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="two candidate structures, fewer calibration seeds")
     ap.add_argument("--scenarios", default="", help="comma-separated subset of plant2 scenarios")
+    ap.add_argument("--skip-identification", action="store_true")
     ap.add_argument("--skip-diagnose", action="store_true")
     ap.add_argument("--skip-calibration", action="store_true")
+    ap.add_argument("--out", default="bench_plant2.json", help="file name in benchmarks/results")
+    ap.add_argument("--print-only", nargs="*", metavar="JSON",
+                    help="print the tables of earlier runs (files in benchmarks/results, merged in order)")
     args = ap.parse_args()
+    if args.print_only is not None:
+        merged = {}
+        for f in args.print_only or ["bench_plant2.json"]:
+            part = json.loads((OUT / f).read_text())
+            for k, val in part.items():
+                if val or k not in merged:
+                    merged[k] = val
+        print_tables(merged)
+        return
     names = [s for s in args.scenarios.split(",") if s] or list(p2.SCENARIOS)
     OUT.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     res = {"single_core": True, "quick": args.quick, "scenarios": names, "code": code_state(),
            "identification": [], "diagnosis": []}
     print(f"code: {res['code']}", flush=True)
-    path = OUT / "bench_plant2.json"
+    path = OUT / args.out
 
     def save():                                   # partial results survive an interrupted run
         path.write_text(json.dumps(res, indent=1, default=float))
 
-    for name in names:
+    for name in ([] if args.skip_identification else names):
         res["identification"].append(identification(name, args.quick))
         save()
     if not args.skip_diagnose:
@@ -340,7 +355,7 @@ def main():
     res["wall_s"] = time.perf_counter() - t0
     save()
     print_tables(res)
-    print(f"\nwall time {res['wall_s']:.0f} s; JSON: {OUT / 'bench_plant2.json'}")
+    print(f"\nwall time {res['wall_s']:.0f} s; JSON: {path}")
 
 
 if __name__ == "__main__":
