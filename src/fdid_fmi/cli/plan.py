@@ -30,6 +30,8 @@ def register(sub):
                    help="estimate the limits from a recorded trace of the same machine")
     p.add_argument("--commands", default=None, metavar="TRACE",
                    help="use the controller's interpolated setpoints (cmd channels of TRACE) instead of interpolating")
+    p.add_argument("--corner-angle", type=float, default=None, metavar="DEG",
+                   help="no stop at junctions whose tangents differ by at most DEG (default: exact stop at every block end)")
     p.add_argument("--tol", type=float, default=None, help="contour tolerance [mm]: blocks above it are flagged")
     p.add_argument("--optimize", action="store_true", help="find per-block feeds within --tol (needs --tol)")
     p.add_argument("--margin", type=float, default=0.02,
@@ -110,7 +112,7 @@ def run(args):
         lim = None
     else:
         lim = _limits(args, prog.axes_used)
-        ip = interpolate(prog, lim, Ts, progress=True)
+        ip = interpolate(prog, lim, Ts, progress=True, corner_angle_deg=args.corner_angle)
     twin = {"model": model} if fmu is None else {"fmu": fmu}
     pr = predict(ip, tol_mm=args.tol, program=prog, **twin)
     s = pr.summary
@@ -130,7 +132,8 @@ def run(args):
                              column="--optimize")
         from ..plan.optimize import optimize_feeds
         from ..plan.ncprogram import write_program
-        fpl = optimize_feeds(prog, lim, Ts, args.tol, margin=args.margin, progress=True, before=pr, **twin)
+        fpl = optimize_feeds(prog, lim, Ts, args.tol, margin=args.margin, progress=True, before=pr,
+                             corner_angle_deg=args.corner_angle, **twin)
         print(f"\nfeed optimisation (tol {args.tol * 1e3:.3g} µm): cycle time {fpl.before.interp.cycle_time:.3f} s "
               f"(programmed) -> {fpl.after.interp.cycle_time:.3f} s (per-block feeds, contour MAX "
               f"{fpl.after.summary['contour_max_um']:.2f} µm); uniform override "

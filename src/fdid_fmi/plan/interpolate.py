@@ -223,7 +223,8 @@ def block_profile(block, limits, Ts, override=1.0):
     return prof, n, c
 
 
-def interpolate(program, limits, Ts, overrides=None, lead_in=0.05, settle=0.5, progress=False):
+def interpolate(program, limits, Ts, overrides=None, lead_in=0.05, settle=0.5, progress=False,
+                corner_angle_deg=None):
     """Commanded positions of a program at Ts (see module docstring).
 
     Parameters
@@ -235,6 +236,8 @@ def interpolate(program, limits, Ts, overrides=None, lead_in=0.05, settle=0.5, p
     lead_in : float, s   rest at the start position before the first block
     settle : float, s    rest after the last block (the drive settles; errors there count
         to the last block)
+    corner_angle_deg : float, optional   no stop at junctions whose tangents differ by at most
+        this angle (:mod:`fdid_fmi.plan.lookahead`); default: exact stop at every block end
 
     Returns
     -------
@@ -244,6 +247,9 @@ def interpolate(program, limits, Ts, overrides=None, lead_in=0.05, settle=0.5, p
         raise InputError(f"Ts must be > 0 s, got {Ts!r}", column="Ts")
     if not program.blocks:
         raise InputError("the program has no motion block", source=program.source)
+    if corner_angle_deg is not None:
+        from .lookahead import interpolate_lookahead
+        return interpolate_lookahead(program, limits, Ts, corner_angle_deg, overrides, lead_in, settle)
     overrides = overrides or {}
     n0 = int(round(lead_in / Ts))
     pieces, spans, feeds = [], [], []

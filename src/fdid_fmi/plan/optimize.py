@@ -196,7 +196,7 @@ def _block_max(pr, idx):
 
 
 def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, margin=0.02,
-                   rel_tol=0.03, min_override=0.05, progress=False, before=None):
+                   rel_tol=0.03, min_override=0.05, progress=False, before=None, corner_angle_deg=None):
     """Per-block feed overrides within ``tol_mm`` of contour error (see module docstring).
 
     Parameters
@@ -211,6 +211,8 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
     fmu : path of an fdid FMU (then ``qs`` or the FMU's shipped model gives the gains)
     qs : QuasiStaticModel, optional (default: :func:`quasi_static_gains` of the model)
     before : Prediction of the programmed feeds, optional (computed otherwise)
+    corner_angle_deg : float, optional   interpolation without stops at tangent junctions
+        (:func:`~fdid_fmi.plan.interpolate.interpolate`)
 
     Returns
     -------
@@ -231,7 +233,7 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
             plan = optimize_feeds(program, limits, Ts, tol_mm, model=model, fmu=tmp,
                                   qs=qs if qs is not None else quasi_static_gains(_fmu_model(fmu)),
                                   margin=margin, min_override=min_override, rel_tol=rel_tol,
-                                  progress=progress, before=before)
+                                  progress=progress, before=before, corner_angle_deg=corner_angle_deg)
         return plan
     twin = dict(model=model, fmu=fmu)
     if qs is None:
@@ -247,7 +249,8 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
 
     def run(ov):
         tick()
-        return predict(interpolate(program, limits, Ts, overrides=ov), tol_mm=tol_mm, program=program, **twin)
+        return predict(interpolate(program, limits, Ts, overrides=ov, corner_angle_deg=corner_angle_deg),
+                       tol_mm=tol_mm, program=program, **twin)
 
     cutting = [b.index for b in program.blocks if b.kind in ("line", "arc") and b.length > 0]
     bar = None
@@ -300,7 +303,8 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
         sub = Program(blocks=[_reindex(bb, k) for k, bb in enumerate(part)], start=part[0].start,
                       source=program.source)
         ov = {k: (fb if bb.index == b else f.get(bb.index, 1.0)) for k, bb in enumerate(part)}
-        pr = predict(interpolate(sub, limits, Ts, overrides=ov, settle=0.2), tol_mm=tol_mm, program=sub, **twin)
+        pr = predict(interpolate(sub, limits, Ts, overrides=ov, settle=0.2, corner_angle_deg=corner_angle_deg),
+                     tol_mm=tol_mm, program=sub, **twin)
         sims += 1
         return max(_block_max(pr, k) for k, bb in enumerate(part)
                    if bb.index == b or (with_next and bb.index > b))
