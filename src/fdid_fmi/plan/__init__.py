@@ -3,7 +3,8 @@
 * :mod:`.ncprogram` - read an ISO / RS-274 part program into motion blocks (lines, arcs in
   G17/G18/G19, G20/G21, G90/G91, G93/G94); bad programs stop with one line naming the line.
 * :mod:`.interpolate` - the blocks become commanded positions at the model's Ts, as a CNC's
-  interpolator makes them (jerk-limited S-curve per block, exact stop at every block end).
+  interpolator makes them (jerk-limited S-curve per block, exact stop at every block end; or,
+  :mod:`.lookahead`, no stop at tangent junctions).
 * :mod:`.predict` - the twin (a :class:`~fdid_fmi.model.DriveModel` through
   :func:`fdid_fmi.simulate.simulate`, or an FMU through ``fmpy.simulate_fmu``) predicts the
   tracking and contour errors per block and for the whole program.

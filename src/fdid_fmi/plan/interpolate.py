@@ -6,7 +6,9 @@ zero tolerance): the path velocity comes to rest at the end of each block, so th
 path *is* the programmed geometry (lines, arcs, helices) and corners are sharp. The in-position
 wait of a real exact stop is not imitated: the next block starts at the next sample, and the
 axes' lag carries into it (that is what the twin then predicts at the corner). ``G64`` blending
-is not imitated.
+is not imitated. With ``corner_angle_deg`` the look-ahead of :mod:`fdid_fmi.plan.lookahead`
+keeps the path velocity through junctions whose tangents differ by at most that angle (still
+no blending: the path stays the programmed one).
 
 Within a block the path parameter s(t) (arc length, mm) follows the time-optimal rest-to-rest
 7-segment jerk-limited S-curve of :func:`fdid_fmi.virtual.trajectories.scurve`, with
