@@ -24,6 +24,9 @@ def summary_lines(fr):
     lines = [f"fleet: {n} axes, {ok} done, {len(fr.failed)} failed; {len(fr.executed)} run now, "
              f"{len(fr.skipped)} unchanged since the last run (reused); {fr.wall_s:.1f} s on {fr.executor}"]
     if fr.previous:
+        if fr.previous_version and fr.previous_version != fr.version:
+            lines.append(f"note: the previous run was made with software {fr.previous_version}, this one with "
+                         f"{fr.version}: a change of the software can show as a change of the plant")
         ch = fr.changed
         lines.append(f"compared with {fr.previous}: {len(ch)} axis/axes changed beyond the thresholds")
         for e in ch:

@@ -60,6 +60,7 @@ class FleetResult:
     out : str                 output folder
     manifest : str
     previous : str or None    the previous fleet folder compared with
+    previous_version : str    software version of the previous run (None without one)
     executor : str            ``local pool (N processes)`` or ``dask <scheduler>``
     workers : int
     entries : list of EntryResult, in manifest order
@@ -82,6 +83,7 @@ class FleetResult:
     wall_s: float = 0.0
     started_utc: str = ""
     version: str = __version__
+    previous_version: str | None = None
 
     @property
     def failed(self):
@@ -100,6 +102,7 @@ class FleetResult:
                 "executed": list(self.executed), "skipped": list(self.skipped),
                 "thresholds": self.thresholds.to_dict(), "wall_s": self.wall_s,
                 "started_utc": self.started_utc, "version": self.version,
+                "previous_version": self.previous_version,
                 "counts": {"entries": len(self.entries), "ok": sum(e.ok for e in self.entries),
                            "failed": len(self.failed), "changed": len(self.changed)},
                 "table": table_rows(self), "entries": [e.to_dict() for e in self.entries]}
@@ -112,7 +115,8 @@ class FleetResult:
                    workers=d["workers"], entries=[EntryResult.from_dict(e) for e in d["entries"]],
                    executed=d.get("executed", []), skipped=d.get("skipped", []),
                    thresholds=Thresholds.from_dict(d.get("thresholds", {})), wall_s=d.get("wall_s", 0.0),
-                   started_utc=d.get("started_utc", ""), version=d.get("version", ""))
+                   started_utc=d.get("started_utc", ""), version=d.get("version", ""),
+                   previous_version=d.get("previous_version"))
 
     def summary(self):
         """Lines a maintenance engineer reads first."""
@@ -158,7 +162,7 @@ def load_fleet_result(folder) -> FleetResult:
 def _previous_models(previous):
     """key -> PreviousModel from a previous fleet folder."""
     if previous is None:
-        return {}, None
+        return {}, None, None
     fr = load_fleet_result(previous)
     base = Path(previous) / "entries"
     out = {}
@@ -170,7 +174,7 @@ def _previous_models(previous):
             out[e.key] = PreviousModel(str(mp.resolve()), asdict(e.signature), dict(e.errors_um),
                                        f"{Path(previous).name}/{e.key}", dict(e.spec) or None,
                                        tuple(e.trace_digests))
-    return out, str(Path(previous))
+    return out, str(Path(previous)), fr.version
 
 
 def _compare_key(input_hash, prev: PreviousModel | None, thresholds: Thresholds):
@@ -298,7 +302,7 @@ def run_fleet(manifest, out, previous=None, scheduler=None, workers=None, client
         raise InputError(f"cannot create the output folder ({exc.strerror or exc})", source=str(out)) from None
     if previous is not None and Path(previous).resolve() == out.resolve():
         raise InputError("--previous must be another fleet folder than --out", source=str(previous))
-    prev_models, prev_name = _previous_models(previous)
+    prev_models, prev_name, prev_version = _previous_models(previous)
     if workers is not None and (int(workers) != workers or workers < 1):
         raise InputError(f"workers must be a positive integer, got {workers!r}", column="workers")
 
@@ -369,6 +373,6 @@ def run_fleet(manifest, out, previous=None, scheduler=None, workers=None, client
                      workers=ex.workers if ex is not None else 0,
                      entries=[results[s.key] for s in man.entries], executed=executed, skipped=skipped,
                      thresholds=thresholds, wall_s=time.perf_counter() - t_start, started_utc=started,
-                     version=version)
+                     version=version, previous_version=prev_version)
     write_fleet_report(fr, out)
     return fr
