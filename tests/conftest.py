@@ -13,3 +13,9 @@ def shared_data():
     if not SHARED_DATA.is_dir():
         pytest.skip(f"real data folder {SHARED_DATA} is absent (it ships beside the repo in CI)")
     return SHARED_DATA
+
+
+@pytest.fixture(scope="session")
+def shared_data_optional():
+    """Path of ../shared/data, or None when it is absent (the test decides what to skip)."""
+    return SHARED_DATA if SHARED_DATA.is_dir() else None

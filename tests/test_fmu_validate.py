@@ -81,20 +81,6 @@ def test_validate_cli_writes_json(case, capsys):
     assert main(args[:-2] + ["--model", str(case["dir"] / "other.json")]) == 1
 
 
-def test_identified_emps_model_as_fmu(shared_data, tmp_path):
-    """Acceptance on real data: the pole-search EMPS model, exported and validated on its record."""
-    from fdid_fmi.identify import identify_siso
-    from fdid_fmi.io import read_trace
-    train = read_trace(shared_data / "emps" / "DATA_EMPS.mat")
-    m = identify_siso(train, "x", integral_action=False, seed=0)
-    fmu = export_fmu(m, tmp_path / "emps.fmu")
-    res = validate_fmu(fmu, train)
-    assert res.problems == [], res.problems
-    assert res.max_abs_diff_reference_mm <= 1e-9
-    assert "run-up" in res.start                      # EMPS starts accelerating at 14 mm/s
-    assert res.axes["x"]["rms_um"] < 3.5              # measured 2.7 um, as the reference simulator
-
-
 def test_validate_reports_an_fmu_without_a_binary_for_this_platform(case, tmp_path):
     import zipfile
     src = case["fmu"]

@@ -31,6 +31,18 @@ def data(cfg, ax, n_moves=20):
     return train, vals
 
 
+def assert_rests(model, ax):
+    """5 s at rest after three moves: the twin holds still (stiction, no creep) on almost every
+    sample, and never reverses from one sample to the next (no chatter); what moves is a few
+    breakaways of its integral action against the holding friction."""
+    mv = tj.linear_moves(n_moves=3, axes=(ax,), Ts=model.Ts, seed=5)[ax]
+    n = int(5 / model.Ts)
+    v = simulate(model, {ax: np.concatenate([mv, np.full(n, mv[-1])])}, Ts=model.Ts).axes[ax]["velocity"]
+    v = v[mv.size:]
+    assert np.mean(np.abs(v) < 1e-9) >= 0.95
+    assert not np.any(v[1:] * v[:-1] < 0)
+
+
 def discrepancy(model, trace, ax):
     return rms(simulate(model, trace).axes[ax]["error"] - trace.error(ax))
 
@@ -42,6 +54,9 @@ def test_without_feedforward_pole_search_beats_full_ls(ax):
     ps = identify_siso(train, ax, seed=0)
     fl = identify_full_ls(train, ax)
     assert max(abs(np.linalg.eigvals(ps.A))) < 1
+    # a sampled loop without look-ahead answers one cycle later: the data choose the hold form
+    assert ps.identification["same_sample_choice"]["chosen"] == "hold"
+    assert_rests(ps, ax)
     for name, v in vals.items():
         d_ps, d_fl = discrepancy(ps, v, ax), discrepancy(fl, v, ax)
         e = rms(v.error(ax))
@@ -60,6 +75,9 @@ def test_with_feedforward_pole_search_beats_baselines(ax):
     ps = identify_mimo(train, mimo_structure((ax,), ("error",), n_real=2, n_complex=1), seed=0)
     fl = identify_full_ls(train, ax)
     qs = identify_quasi_static(train, [ax])
+    # the feed-forward looks one sample ahead: the data choose the quadratic prediction
+    assert ps.identification["same_sample_choice"]["chosen"] == "quadratic"
+    assert_rests(ps, ax)
     for name, v in vals.items():
         d = {k: discrepancy(m, v, ax) for k, m in (("ps", ps), ("fl", fl), ("qs", qs))}
         assert d["ps"] < d["fl"] and d["ps"] < d["qs"], (name, d)

@@ -70,7 +70,7 @@ def _lib():
     lib.fdid_state_bind.argtypes = [sp, ct.POINTER(_Model), _D]
     for f in ("fdid_state_defaults", "fdid_initialize", "fdid_outputs", "fdid_advance"):
         getattr(lib, f).argtypes = [sp]
-    lib.fdid_run.restype = ct.c_longlong
+    lib.fdid_run.restype = None
     lib.fdid_run.argtypes = [sp, ct.c_longlong, _D, _D, _D, _D, _D]
     lib.fdid_sizeof_state.restype = lib.fdid_sizeof_model.restype = ct.c_size_t
     if lib.fdid_sizeof_state() != ct.sizeof(_State) or lib.fdid_sizeof_model() != ct.sizeof(_Model):

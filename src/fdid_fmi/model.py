@@ -410,6 +410,13 @@ TS_RANGE = (1e-6, 10.0)  # s
 MAX_ABS = 1e150         # largest magnitude of a model number (products stay finite)
 
 
+def port_name(text):
+    """An identifier for a port named after a trace channel (``spindle-load`` -> ``spindle_load``,
+    ``2nd`` -> ``c_2nd``); the channel itself stays in the port's ``params["channel"]``."""
+    name = re.sub(r"[^A-Za-z0-9_]", "_", str(text))[:120] or "channel"
+    return name if NAME_RE.fullmatch(name) else "c_" + name
+
+
 def check_name(name, what, source=None):
     """Raise InputError unless ``name`` is a C/FMI identifier ``[A-Za-z_][A-Za-z0-9_]*`` of at
     most MAX_NAME characters. ``what`` says what it names (``"axis"``, ``"input name"``)."""

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 from .mapping import add_trace_arguments, trace_from_args
 
@@ -10,10 +9,12 @@ from .mapping import add_trace_arguments, trace_from_args
 def register(sub):
     p = sub.add_parser(
         "validate", help="check an FMU: fmpy validation, reference simulator, measured trace",
-        description="Validate an FMU: fmpy's model-description checks; the FMU driven through fmpy "
-                    "with the trace's commanded positions against the reference simulator (target "
-                    "<= 1e-9 mm); and its tracking-error (and two-axis contour-error) discrepancy "
-                    "to the measurement in µm. Exit code 1 when a problem is found.")
+        description="Validate an FMU the way co-simulation masters run it: fmpy's model-description "
+                    "checks; the FMU run by fmpy.simulate_fmu with an input table of the trace's "
+                    "commanded positions (step = the model's Ts), rows aligned by time, against the "
+                    "in-process prediction (target <= 1e-9 mm; a non-finite output is a problem); "
+                    "and its tracking-error (and two-axis contour-error) discrepancy to the "
+                    "measurement in µm. Exit code 1 when a problem is found.")
     p.add_argument("fmu", help="the FMU to check")
     p.add_argument("trace", help="measured trace (commanded and actual positions)")
     p.add_argument("--model", default=None,
@@ -27,6 +28,9 @@ def register(sub):
 
 def run(args):
     from ..fmu.validate import validate_fmu
+    from ..outputs import atomic_write, check_output
+    if args.json:
+        check_output(args.json, inputs=[p for p in (args.fmu, args.trace, args.model) if p], suffix=".json")
     trace = trace_from_args(args.trace, args)
     pieces = trace.select(trace.meta.get("ranges"))
     results = [validate_fmu(args.fmu, t, model=args.model, tolerance_mm=args.tolerance) for t in pieces]
@@ -42,6 +46,6 @@ def run(args):
             data = {"problems": [p for r in results for p in r.problems],
                     "max_abs_diff_reference_mm": max(r.max_abs_diff_reference_mm for r in results),
                     "ranges": [r.to_dict() for r in results]}
-        Path(args.json).write_text(json.dumps(data, indent=1))
+        atomic_write(args.json, json.dumps(data, indent=1))
         print(f"results written to {args.json}")
     return 0 if all(r.ok for r in results) else 1

@@ -48,7 +48,7 @@ from scipy.linalg import LinAlgWarning
 from ..errors import InputError
 from ..identify.pole_search import identify_mimo
 from ..identify.structure import Bounds, InputSpec, OutputSpec, Structure, default_bounds
-from ..model import DriveModel
+from ..model import DriveModel, port_name
 from .residuals import delayed, with_channels
 
 
@@ -404,7 +404,7 @@ def add_external(recipe, axis, channel, kind, effect_params, powers=None):
     """External input from a trace channel with its own numerator on the axis's outputs."""
     r = recipe.copy()
     n = r.order
-    nm = _unique(r, str(channel))
+    nm = _unique(r, port_name(channel))
     r.inputs.append(InputSpec("external", axis, channel=channel, name=nm))
     pw = frozenset(range(0, n + 1)) if powers is None else frozenset(powers)
     for o in r.outputs:

@@ -241,12 +241,16 @@ def run_fmu(fmu_path, commands, Ts, start_velocity=None, externals=None, paramet
 
 # --------------------------------------------------------------------------- validation
 def _model_from_fmu(fmu_path):
-    with zipfile.ZipFile(fmu_path) as zf:
-        try:
+    try:
+        with zipfile.ZipFile(fmu_path) as zf:
             d = json.loads(zf.read("resources/model.json"))
-        except KeyError:
-            raise InputError("the FMU carries no resources/model.json; pass the model (--model)",
-                             source=str(fmu_path)) from None
+    except zipfile.BadZipFile:
+        raise InputError("is not an FMU (not a zip archive)", source=str(fmu_path)) from None
+    except KeyError:
+        raise InputError("the FMU carries no resources/model.json; pass the model (--model)",
+                         source=str(fmu_path)) from None
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        raise InputError("resources/model.json in the FMU is not JSON", source=str(fmu_path)) from None
     return DriveModel.from_dict(d, source=f"{fmu_path}:resources/model.json")
 
 

@@ -402,13 +402,13 @@ double fdid_var_value(FdidState *S, const FdidVar *v) {
  * (set the inputs of sample k, read the outputs of sample k, advance), without the FMI layer.
  * cmd: N x n_axes commanded positions; ext: N x m (only the external-input columns are read).
  * Y (N x p), U (N x m), V (N x n_axes) receive outputs, applied inputs and axis velocities.
- * The caller sets level / vtilde / on / v0 before; the state is initialised from sample 0.
- * Returns the first sample whose outputs are not finite, or -1 when all are. */
-long long fdid_run(FdidState *S, long long N, const double *cmd, const double *ext, double *Y,
-                   double *U, double *V) {
+ * The caller sets level / vtilde / on / v0 before; the state is initialised from sample 0
+ * (the caller checks the outputs for non-finite values). */
+void fdid_run(FdidState *S, long long N, const double *cmd, const double *ext, double *Y,
+              double *U, double *V) {
     const FdidModel *M = S->M;
     int m = M->m, p = M->p, na = M->n_axes, i, a;
-    long long k, bad = -1;
+    long long k;
     for (k = 0; k < N; k++) {
         for (a = 0; a < na; a++) S->cmd[a] = cmd[k * na + a];
         for (i = 0; i < m; i++)
@@ -416,15 +416,11 @@ long long fdid_run(FdidState *S, long long N, const double *cmd, const double *e
         if (k == 0) S->f.init_dirty = 1;
         S->f.out_dirty = 1;
         fdid_outputs(S);
-        for (i = 0; i < p; i++) {
-            Y[k * p + i] = S->y[i];
-            if (bad < 0 && !fdid_is_finite(S->y[i])) bad = k;
-        }
+        for (i = 0; i < p; i++) Y[k * p + i] = S->y[i];
         for (i = 0; i < m; i++) U[k * m + i] = S->u[i];
         for (a = 0; a < na; a++) V[k * na + a] = S->vel[a];
         fdid_advance(S);
     }
-    return bad;
 }
 
 size_t fdid_sizeof_state(void) { return sizeof(FdidState); }

@@ -119,8 +119,8 @@ void fdid_initialize(FdidState *S);
 void fdid_outputs(FdidState *S);
 void fdid_advance(FdidState *S);
 double fdid_var_value(FdidState *S, const FdidVar *v);
-long long fdid_run(FdidState *S, long long N, const double *cmd, const double *ext, double *Y,
-                   double *U, double *V);
+void fdid_run(FdidState *S, long long N, const double *cmd, const double *ext, double *Y,
+              double *U, double *V);
 size_t fdid_sizeof_state(void);
 size_t fdid_sizeof_model(void);
 int fdid_is_finite(double x);

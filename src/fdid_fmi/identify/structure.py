@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..model import delayed_input
+from ..model import delayed_input, port_name
 from .regressors import SAME_SAMPLE
 
 INPUT_SOURCES = ("command", "friction", "external", "feature")
@@ -288,7 +288,7 @@ def mimo_structure(axes=("x",), outputs=("error",), n_real=1, n_complex=1, coupl
         if friction:
             ins.append(InputSpec("friction", ax))
     for ch in externals:
-        ins.append(InputSpec("external", axes[0], channel=ch, name=ch))
+        ins.append(InputSpec("external", axes[0], channel=ch, name=port_name(ch)))
     outs = []
     for ax in axes:
         for k in outputs:

@@ -1,0 +1,81 @@
+"""Reference simulation speed: the compiled core against the former pure-Python step.
+
+The free run of a DriveModel used to be a numpy/Python loop (0.1-0.2 M samples/s); it is now
+``fmu_templates/fdid_core.c`` built into the package (``fdid_fmi._kernel``). That Python loop
+survives unchanged as the test oracle (``tests/sim_oracle.py``), so both are timed side by side
+in one run, on the same models and commands (single core, BLAS threads pinned to 1):
+
+- a 3rd-order axis with friction (the thesis's rigid-body model, hand-built, causal);
+- an identified causal pole-search axis (virtual drive, no feed-forward);
+- the two-axis coupled model with two friction inputs.
+
+    .venv/bin/python benchmarks/bench_simulate.py [--quick]
+
+Writes benchmarks/results/bench_simulate.json and prints a table (samples/s; target for the
+compiled core: >= 10 M samples/s on the 3rd-order axis).
+"""
+import os
+
+for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(var, "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent / "tests"))          # the oracle and the hand-built models
+
+import fmu_support as fs  # noqa: E402
+from fdid_fmi.simulate import simulate  # noqa: E402
+from sim_oracle import oracle_simulate  # noqa: E402
+from timing import timed  # noqa: E402
+
+OUT = HERE / "results" / "bench_simulate.json"
+
+
+def identified_axis():
+    from fdid_fmi.identify import identify_siso
+    from fdid_fmi.virtual import MachineConfig, presets, simulate_machine
+    from fdid_fmi.virtual import trajectories as tj
+    cfg = presets.deckel_maho_like()
+    one = MachineConfig(axes=[cfg.axis("x")], Ts=cfg.Ts)
+    tr = simulate_machine(one, tj.linear_moves(n_moves=8, axes=("x",), Ts=cfg.Ts, seed=1), seed=1)
+    return identify_siso(tr, "x", seed=0, maxiter=20)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    a = ap.parse_args()
+    n_fast, n_slow = (200_000, 5_000) if a.quick else (2_000_000, 20_000)
+    cases = [("3rd-order axis + friction (hand-built)", fs.siso_model()),
+             ("identified pole-search axis (virtual, no FF)", identified_axis()),
+             ("coupled X/Y, 2 friction inputs", fs.coupled_model())]
+    rows = []
+    for name, m in cases:
+        rng = np.random.default_rng(0)
+        cmd_fast = {ax: fs.smooth_moves(n_fast, rng, start=1.0 + i) for i, ax in enumerate(m.axes)}
+        cmd_slow = {ax: c[:n_slow] for ax, c in cmd_fast.items()}
+        t_c, res = timed(lambda: simulate(m, cmd_fast, Ts=m.Ts), 3)
+        t_py, ref = timed(lambda: oracle_simulate(m, cmd_slow, Ts=m.Ts), 1)
+        same = bool(np.array_equal(res.y[:n_slow], ref.y))
+        rows.append(dict(case=name, states=m.n_states, compiled_samples=n_fast, compiled_s=t_c,
+                         compiled_samples_per_s=n_fast / t_c, python_samples=n_slow, python_s=t_py,
+                         python_samples_per_s=n_slow / t_py, speedup=(n_fast / t_c) / (n_slow / t_py),
+                         identical_outputs=same))
+    OUT.parent.mkdir(parents=True, exist_ok=True)
+    OUT.write_text(json.dumps({"rows": rows}, indent=2))
+    print("| model | states | compiled core [samples/s] | former Python loop [samples/s] | ratio | same doubles |")
+    print("|---|---:|---:|---:|---:|---|")
+    for r in rows:
+        print(f"| {r['case']} | {r['states']} | {r['compiled_samples_per_s'] / 1e6:.1f} M | "
+              f"{r['python_samples_per_s'] / 1e3:.0f} k | {r['speedup']:.0f}x | {r['identical_outputs']} |")
+    print(f"wrote {OUT}")
+
+
+if __name__ == "__main__":
+    main()
