@@ -68,6 +68,10 @@ def register(sub):
     s.add_argument("--velocity", choices=("backward", "central"), default="backward",
                    help="measured velocity estimate driving friction")
     s.add_argument("--ma-order", type=_int_in(1, 1000, "--ma-order"), default=1, help="moving-average order of that velocity")
+    s.add_argument("--same-sample", choices=("hold", "quadratic"), default=None,
+                   help="how the command of the predicted sample is taken from the samples before "
+                        "(hold: a loop without look-ahead; quadratic: feed-forward with one sample of "
+                        "look-ahead); default: identify with both, keep the lower training free-run error")
     s.add_argument("--real-hz", action="append", default=None, metavar="LO:HI",
                    help="bounds of one real pole [Hz] (repeat per pole; sets the number of real poles)")
     s.add_argument("--omega-hz", action="append", default=None, metavar="LO:HI",
@@ -251,7 +255,8 @@ def identify_from_args(trace, args, progress=True):
                              source="--n-real/--n-complex")
         models = [idf.identify_siso(pieces, ax, integral_action=not args.no_integral_action,
                                     velocity=args.velocity, ma_order=args.ma_order,
-                                    friction=not args.no_friction, **common) for ax in axes]
+                                    friction=not args.no_friction, same_sample=args.same_sample,
+                                    **common) for ax in axes]
         return models[0] if len(models) == 1 else DriveModel.combine(models, method="pole-search")
     outputs = tuple(o.strip() for o in args.outputs.split(",") if o.strip())
     kw = dict(outputs=outputs, n_real=n_real, n_complex=n_complex, friction=not args.no_friction,
@@ -259,7 +264,8 @@ def identify_from_args(trace, args, progress=True):
               integrators=_kv(args.integrators, "--integrators", _integrators, outputs, "acceleration=2"),
               dc_gain=_kv(args.dc_gain, "--dc-gain", _dc_gain, outputs, "position=1:1.0"),
               locked_complex=[_pair(c, "--lock-complex") for c in args.lock_complex],
-              velocity=args.velocity, ma_order=args.ma_order, externals=tuple(args.external))
+              velocity=args.velocity, ma_order=args.ma_order, externals=tuple(args.external),
+              same_sample=args.same_sample)
     if args.coupled:
         st = idf.mimo_structure(tuple(axes), coupled=True, **kw)
         return idf.identify_mimo(pieces, st, **common)

@@ -203,16 +203,17 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
 
 def identify_siso(traces, axis="x", integral_action=True, v_tilde=None, bounds=None, method="de",
                   seed=0, ma_order=1, velocity="backward", maxiter=None, popsize=None, progress=False,
-                  friction=True, refine=True):
+                  friction=True, refine=True, same_sample=None):
     """SISO rigid-body pole search with LS projection (thesis Eqn 4.10-4.17).
 
     Inputs x_r and d_nf = sat(v/v_tilde) (v: moving-average-filtered encoder derivative), output
     e = x_r - x; P(s) = (s + p)(s^2 + 2 zeta omega s + omega^2); candidates with d0 < 0 rejected.
     ``integral_action=False`` adds the 1/P(s) friction term for P/PD position loops (EMPS).
-    v_tilde (mm/s) is searched with the poles unless given.
+    v_tilde (mm/s) is searched with the poles unless given. ``same_sample``: ``hold``,
+    ``quadratic`` or None (chosen from the data), see :class:`~.structure.Structure`.
     """
     st = siso_structure(axis, integral_action=integral_action, ma_order=ma_order, friction=friction,
-                        velocity=velocity)
+                        velocity=velocity, same_sample=same_sample)
     model = identify_mimo(traces, st, bounds=bounds, v_tilde=v_tilde, method=method, seed=seed,
                           maxiter=maxiter, popsize=popsize, progress=progress, refine=refine)
     model.method = "pole-search"
