@@ -190,6 +190,9 @@ def test_cli_optimise_through_the_fmu(machine, tmp_path):
     assert opt.blocks[0].feed == orig.blocks[0].feed                # the rapid is not touched
     fp = json.loads((tmp_path / "r.json").read_text())["data"]["feed_plan"]
     assert fp["reachable"] and fp["cycle_time_after_s"] < fp["uniform_cycle_time_s"]
-    rows = json.loads((tmp_path / "r.json").read_text())["tables"]["feeds"]
+    tables = json.loads((tmp_path / "r.json").read_text())["tables"]
+    names = [row[0] for row in tables["fmu_variables"]["rows"]]
+    assert {"x_x_cmd", "y_x_cmd", "x_x", "y_x"} <= set(names)          # the FMU's variables are shown
+    rows = tables["feeds"]
     after = rows["columns"].index("contour_max_after_um")
     assert max(row[after] for row in rows["rows"]) <= 30.0
