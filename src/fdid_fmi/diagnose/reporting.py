@@ -203,6 +203,8 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
     rep.add_data("diagnosis", diag.to_json())
     if fmu:
         rep.add_data("fmu", fmu)
+    from ..report import add_model_section
+    add_model_section(rep, diag.final, heading="The model after diagnosis")
     return rep
 
 
