@@ -327,7 +327,10 @@ def main():
         for f in args.print_only or ["bench_plant2.json"]:
             part = json.loads((OUT / f).read_text())
             for k, val in part.items():
-                if val or k not in merged:
+                if isinstance(val, list) and isinstance(merged.get(k), list):
+                    have = {r.get("scenario") for r in merged[k] if isinstance(r, dict)}
+                    merged[k] += [r for r in val if not (isinstance(r, dict) and r.get("scenario") in have)]
+                elif val or k not in merged:
                     merged[k] = val
         print_tables(merged)
         return
