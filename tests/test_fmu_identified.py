@@ -23,7 +23,7 @@ def flexible(tmp_path_factory):
     nyq = 0.5 / cfg.Ts
     train = simulate_machine(MachineConfig(axes=[cfg.axis("y")], Ts=cfg.Ts),
                              tj.linear_moves(n_moves=8, axes=("y",), Ts=cfg.Ts, seed=1), seed=1)
-    m = identify_mimo(train, mimo_structure(("y",), ("velocity", "tool_position"), 1, 2),
+    m = identify_mimo(train, mimo_structure(("y",), ("velocity", "tool_position"), 1, 2, same_sample="hold"),
                       bounds=Bounds([(0.02, nyq)], [(0.02, nyq), (20.0, 40.0)], [(0.01, 4.0), (0.001, 0.5)]),
                       seed=0, maxiter=40)
     val = simulate_machine(MachineConfig(axes=[cfg.axis("y")], Ts=cfg.Ts),
@@ -37,13 +37,15 @@ def coupled(tmp_path_factory):
     cfg = presets.coupled_xy()
     Ts = cfg.Ts
     train = [simulate_machine(cfg, tj.spiral(Ts=Ts), seed=5)]
-    dec = [identify_mimo(train, mimo_structure((ax,), ("error",), 1, 1), seed=0, maxiter=20) for ax in "xy"]
+    dec = [identify_mimo(train, mimo_structure((ax,), ("error",), 1, 1, same_sample="hold"), seed=0, maxiter=20)
+           for ax in "xy"]
     real = [d.identification["real_hz"][0] for d in dec]
     cplx = [d.identification["complex_hz_zeta"][0] for d in dec]
     bounds = Bounds([(r / 1.5, r * 1.5) for r in real], [(w / 1.5, w * 1.5) for w, _ in cplx],
                     [(z / 2, min(2 * z, 4.0)) for _, z in cplx])
     vt = {ax: d.identification["v_tilde_regressor_mm_s"][ax] for ax, d in zip("xy", dec)}
-    m = identify_mimo(train, mimo_structure(("x", "y"), ("error",), 2, 2, coupled=True), bounds=bounds,
+    m = identify_mimo(train, mimo_structure(("x", "y"), ("error",), 2, 2, coupled=True, same_sample="hold"),
+                      bounds=bounds,
                       v_tilde=vt, seed=0, maxiter=10)
     val = simulate_machine(cfg, tj.circle(Ts=Ts), seed=3)
     d = tmp_path_factory.mktemp("coupled")

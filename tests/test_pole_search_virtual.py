@@ -106,7 +106,7 @@ def _mode_of(model, lo=20.0, hi=40.0):
 
 def test_flexible_mode_from_tool_position(flexible):
     cfg, train, vals, bounds, mode = flexible
-    m = identify_mimo(train, mimo_structure(("y",), ("velocity", "tool_position"), 1, 2),
+    m = identify_mimo(train, mimo_structure(("y",), ("velocity", "tool_position"), 1, 2, same_sample="hold"),
                       bounds=bounds, seed=0, maxiter=40)
     f, z = _mode_of(m)
     assert f == pytest.approx(mode["hz"], rel=0.01)          # truth 25.66 Hz in closed loop
@@ -125,7 +125,7 @@ def test_flexible_mode_from_tool_acceleration(flexible):
     # position from acceleration needs more data than from position (thesis Table 7-5)
     train = simulate_machine(single_axis(cfg, "y"),
                              tj.linear_moves(n_moves=20, axes=("y",), Ts=cfg.Ts, seed=1), seed=1)
-    st = mimo_structure(("y",), ("acceleration",), 1, 2, integrators={"acceleration": 2},
+    st = mimo_structure(("y",), ("acceleration",), 1, 2, integrators={"acceleration": 2}, same_sample="hold",
                         dc_gain={"acceleration": (2, 1.0)})
     m = identify_mimo(train, st, bounds=bounds, seed=0, maxiter=40)
     f, z = _mode_of(m)
@@ -148,14 +148,15 @@ def test_coupled_model_beats_decoupled_models():
     train = [simulate_machine(cfg, tj.spiral(Ts=Ts), seed=5),
              simulate_machine(cfg, tj.figure_eight(width=30, height=30, Ts=Ts), seed=6)]
     vals = [simulate_machine(cfg, tj.circle(Ts=Ts), seed=3), simulate_machine(cfg, tj.diamond(Ts=Ts), seed=2)]
-    dec = [identify_mimo(train, mimo_structure((ax,), ("error",), 1, 1), seed=0, maxiter=30) for ax in "xy"]
+    dec = [identify_mimo(train, mimo_structure((ax,), ("error",), 1, 1, same_sample="hold"), seed=0, maxiter=30)
+           for ax in "xy"]
     real = [m.identification["real_hz"][0] for m in dec]
     cplx = [m.identification["complex_hz_zeta"][0] for m in dec]
     bounds = Bounds(real_hz=[(r / 1.5, r * 1.5) for r in real],
                     omega_hz=[(w / 1.5, w * 1.5) for w, _ in cplx],
                     zeta=[(z / 2, min(2 * z, 4.0)) for _, z in cplx])
     vt = {ax: m.identification["v_tilde_regressor_mm_s"][ax] for ax, m in zip("xy", dec)}
-    coupled = identify_mimo(train, mimo_structure(("x", "y"), ("error",), 2, 2, coupled=True),
+    coupled = identify_mimo(train, mimo_structure(("x", "y"), ("error",), 2, 2, coupled=True, same_sample="hold"),
                             bounds=bounds, v_tilde=vt, seed=0, maxiter=20)
     decoupled = DriveModel.combine(dec)
 

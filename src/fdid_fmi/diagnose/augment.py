@@ -246,6 +246,13 @@ def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, r
     return model
 
 
+def other_same_sample(recipe: Recipe) -> Recipe:
+    """The recipe with the other causal same-sample prediction (hold <-> quadratic)."""
+    r = recipe.copy()
+    r.same_sample = "hold" if recipe.same_sample == "quadratic" else "quadratic"
+    return r
+
+
 def updated_recipe(recipe: Recipe, model: DriveModel) -> Recipe:
     """The recipe with the poles of a fitted model as the new current values (pairs found)."""
     r = recipe.copy()

@@ -72,5 +72,8 @@ def detect(ctx):
                          note="training free-run RMS without / with the best command shift")
         if cand.detected:
             cand.recipe = ag.add_delay(ctx.recipe, a, k_star)
+            # one sample of delay is what separates the hold and quadratic same-sample forms of a
+            # causal model: a dead time must also beat the model in the other form
+            cand.reference = ag.other_same_sample(ctx.recipe)
         out.append(cand)
     return out
