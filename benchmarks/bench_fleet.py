@@ -8,13 +8,16 @@ feed-forward, traces of 6 linear moves ~3 s at 1 ms) is run from scratch with a 
 of each worker count (a fresh output folder each time, so nothing is reused), then rerun once
 unchanged (must do no work). Per entry the wall time of each stage (identify / export / validate /
 diagnose) is read from the entries' results. Entries per minute = entries / wall time of the run,
-including the pool's start-up.
+including the pool's start-up. Worker CPU = user + system time of the pool's processes (they are
+reaped when the pool shuts down): on a machine shared with other jobs the wall time depends on the
+CPU share the pool gets, the CPU per entry does not.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import platform
+import resource
 import sys
 import tempfile
 from pathlib import Path
@@ -46,13 +49,17 @@ def main(argv=None):
         man = write_virtual_fleet(tmp / "data", n_machines=args.machines, nights=(1,),
                                   diagnose=not args.no_diagnose)[1]
         for w in counts:
+            ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
             wall, fr = timed(lambda: run_fleet(man, tmp / f"w{w}", workers=w, progress=False))
+            ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu = (ru1.ru_utime + ru1.ru_stime) - (ru0.ru_utime + ru0.ru_stime)
             n = len(fr.entries)
             ok = [e for e in fr.entries if e.ok]
             t_rerun, again = timed(lambda: run_fleet(man, tmp / f"w{w}", workers=w, progress=False))
             tm = {s: float(np.mean([getattr(e.timings, s) for e in ok])) for s in STAGES + ("total_s",)}
             split[w] = tm
             rows.append({"workers": w, "entries": n, "failed": len(fr.failed), "wall_s": wall,
+                         "worker_cpu_s": cpu, "cpu_s_per_entry": cpu / n,
                          "entries_per_min": 60.0 * n / wall, "rerun_s": t_rerun,
                          "rerun_executed": len(again.executed), **{f"mean_{k}": v for k, v in tm.items()}})
     res = {"machine": platform.platform(), "python": platform.python_version(), "machines": args.machines,
@@ -62,11 +69,12 @@ def main(argv=None):
     OUT.parent.mkdir(parents=True, exist_ok=True)
     OUT.write_text(json.dumps(res, indent=1))
     print(f"virtual fleet: {2 * args.machines} axes, diagnosis {'on' if res['diagnose'] else 'off'}\n")
-    print("| workers | entries | wall [s] | entries/min | identify [s] | export [s] | validate [s] | "
-          "diagnose [s] | entry total [s] | rerun [s] (work done) |")
-    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("| workers | entries | wall [s] | entries/min | worker CPU [s/entry] | identify [s] | export [s] | "
+          "validate [s] | diagnose [s] | entry total [s] | rerun [s] (work done) |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
         print(f"| {r['workers']} | {r['entries']} | {r['wall_s']:.1f} | {r['entries_per_min']:.1f} | "
+              f"{r['cpu_s_per_entry']:.1f} | "
               f"{r['mean_identify_s']:.2f} | {r['mean_export_s']:.2f} | {r['mean_validate_s']:.2f} | "
               f"{r['mean_diagnose_s']:.2f} | {r['mean_total_s']:.2f} | {r['rerun_s']:.2f} "
               f"({r['rerun_executed']} entries) |")
