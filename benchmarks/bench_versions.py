@@ -61,9 +61,12 @@ def run(python, task):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--other", required=True, help="the other checkout's Python")
+    ap.add_argument("--other", default=None, help="the other checkout's Python")
     ap.add_argument("--repeat", type=int, default=1)
-    a = ap.parse_args()
+    a, _ = ap.parse_known_args()
+    if a.other is None:
+        print("bench_versions: nothing to compare with (give --other PATH/TO/OTHER/python)")
+        return
     rows = []
     for task in ("identify", "diagnose"):
         best = {"this": (1e9, 1e9), "other": (1e9, 1e9)}
