@@ -16,13 +16,6 @@ reproduces the regressors to rounding.
 The denominator is normalised to den(1) = 1 (unit d.c. gain of the all-pole part) so the
 internal signal r has the size of the input.
 
-Causality (DESIGN.md): a sampled drive answers a command one controller cycle later at the
-earliest, so inputs that come from outside the drive (commands, measured external inputs) enter
-the regressors one sample late, phi_l[k-1] (``delay=1``). Their SIMO filter then has n+1 states
-(the last n+1 values of r) and no feed-through: an output read after a co-simulation step is the
-model's prediction for the end of that step. Friction inputs are functions of the model's own
-state and stay in the same sample (``delay=0``), so the friction loop is still solved exactly.
-
 Causality (DESIGN.md): an FMU read after ``doStep`` cannot know the command of the sample it
 is read at. The Tustin filters have a same-sample term D0 w[k] (D0 = F[:, 0] / den[0]); for
 inputs from outside the drive (commands, measured external inputs) it uses w^[k], predicted
@@ -149,7 +142,7 @@ def same_sample_part(W, dw, coef):
 
 
 def allpole_filter(den, W, w0=None, dw=None):
-    """Filter signals through 1/den(q) from their steady ramp, with n+1 samples of history.
+    """Filter signals through 1/den(q) from their steady ramp, with n samples of history.
 
     Parameters
     ----------
@@ -159,25 +152,23 @@ def allpole_filter(den, W, w0=None, dw=None):
 
     Returns
     -------
-    R : (m, N + n + 1) all-pole output; R[:, n + 1 + k] belongs to sample k, the first n+1
-        columns are the steady-ramp history r[-n-1..-1] (one more than the filter needs, for
-        the regressors of delayed inputs).
+    R : (m, N + n) all-pole output; R[:, n + k] belongs to sample k, the first n columns are
+        the steady-ramp history r[-n..-1].
     """
     W = np.atleast_2d(np.asarray(W, float))
     m, N = W.shape
     n = len(den) - 1
-    h = n + 1
     if w0 is None or dw is None:
         w0, dw = ramp_start(W)
     w0, dw = np.broadcast_to(w0, (m,)), np.broadcast_to(dw, (m,))
     # steady ramp response of 1/den: r[k] = w0 + k dw + dw * den'(1)   (den(1) = 1)
     dprime = float(np.sum(np.arange(n + 1) * den))
-    ks = np.arange(-h, 0)
+    ks = np.arange(-n, 0)
     hist = w0[:, None] + ks[None, :] * dw[:, None] + (dw * dprime)[:, None]
-    out = np.empty((m, N + h))
-    out[:, :h] = hist
+    out = np.empty((m, N + n))
+    out[:, :n] = hist
     if n == 0:
-        out[:, h:] = W / den[0]
+        out[:, :] = W / den[0]
         return out
     # lfilter state (transposed direct form II, b = [1]) from the past outputs y[-1], y[-2], ..:
     # zi[j] = -sum_i a[j+i+1] y[-i-1]  (a normalised by a[0]); scipy.signal.lfiltic, vectorised
@@ -185,35 +176,25 @@ def allpole_filter(den, W, w0=None, dw=None):
     H = np.zeros((n, n))
     for i in range(n):
         H[i, : n - i] = an[i + 1:]
-    zi = -(hist[:, :0:-1] @ H)
-    out[:, h:], _ = signal.lfilter([1.0 / den[0]], an, W, axis=-1, zi=zi)
+    zi = -(hist[:, ::-1] @ H)
+    out[:, n:], _ = signal.lfilter([1.0 / den[0]], an, W, axis=-1, zi=zi)
     return out
 
 
-def regressors(R, F, n, delay=None):
-    """phi_l of every input from the all-pole outputs, optionally one sample late.
+def regressors(R, F, n):
+    """phi_l of every input from the all-pole outputs.
 
     Parameters
     ----------
-    R : (m, N + n + 1) from :func:`allpole_filter`
+    R : (m, N + n) from :func:`allpole_filter`
     F : (L, n+1) rows of :func:`tustin_basis` (all n+1 or the ones needed)
-    delay : (m,) 0 or 1 per input; 1 gives phi_l[k-1] (inputs from outside the drive)
 
     Returns
     -------
-    Phi : (m, L, N) Phi[i, l] = phi_l of input i, delayed as asked (contiguous rows: the LS
-          works on them)
+    Phi : (m, L, N) Phi[i, l] = phi_l of input i (contiguous rows: the LS works on them)
     """
     m, total = R.shape
-    N = total - n - 1
-    if delay is not None and np.any(delay):
-        # r[k - delay_i - j]: shift the delayed rows by one column, then one FIR pass for all
-        Rs = np.empty((m, N + n))
-        for i in range(m):
-            Rs[i] = R[i, :-1] if delay[i] else R[i, 1:]
-        R = Rs
-    else:
-        R = R[:, 1:]
+    N = total - n
     F = np.asarray(F, float)
     out = np.zeros((m, F.shape[0], N))
     for j in range(n + 1):                       # phi_l[k] = sum_j F[l, j] r[k - j]
@@ -221,27 +202,24 @@ def regressors(R, F, n, delay=None):
     return out
 
 
-def simo_realisation(den, F, delay=0):
+def simo_realisation(den, F):
     """State space of the SIMO filter w -> [phi_0 .. phi_n] (thesis G_0,ssd, Eqn 5.5-5.7).
 
-    The state is the last n values of the all-pole output r (``delay=1``: the last n+1, and the
-    outputs are phi_l[k-1] with no feed-through), so it reproduces :func:`regressors` exactly.
+    The state is the last n values of the all-pole output r, so it reproduces
+    :func:`regressors` exactly.
 
     Returns
     -------
-    A0 (n+delay, n+delay), B0 (n+delay, 1), C0 (n+1, n+delay), D0 (n+1, 1)
+    A0 (n,n), B0 (n,1), C0 (n+1,n), D0 (n+1,1)
     """
     n = len(den) - 1
     c0 = den[0]
-    k = n + delay
-    A0 = np.zeros((k, k))
-    A0[0, :n] = -den[1:] / c0
-    if k > 1:
-        A0[1:, :-1] = np.eye(k - 1)
-    B0 = np.zeros((k, 1))
+    A0 = np.zeros((n, n))
+    A0[0, :] = -den[1:] / c0
+    if n > 1:
+        A0[1:, :-1] = np.eye(n - 1)
+    B0 = np.zeros((n, 1))
     B0[0, 0] = 1.0 / c0
-    if delay:
-        return A0, B0, np.array(F, float), np.zeros((n + 1, 1))
     C0 = F[:, 1:] - np.outer(F[:, 0], den[1:]) / c0
     D0 = (F[:, 0] / c0).reshape(-1, 1)
     return A0, B0, C0, D0
