@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..model import DriveModel, QuasiStaticModel
+from ..model import DriveModel, QuasiStaticModel, delayed_input
 
 # FMI unit name and base-unit exponents/factor (to SI) for the canonical units of fdid_fmi.units
 FMI_UNITS = {
@@ -277,15 +277,12 @@ def _dependencies(m, axes, cmd, pos, vel, fric, fvo):
     aidx = {a: i for i, a in enumerate(axes)}
     direct = {}   # model input index -> set of FMU input keys it carries at the same step
     for i, p in enumerate(ins):
-        if p.kind == "command":
-            direct[i] = {("cmd", aidx[p.axis])}
+        if not delayed_input(p.kind, p.params):     # friction, velocity/position features
+            direct[i] = set()
         elif p.kind == "external":
             direct[i] = {("ext", i)}
-        elif p.kind == "feature" and p.params.get("function") in ("sin_position", "cos_position") \
-                and p.params.get("source", "command") == "command":
+        else:                                       # the command, or a feature of it
             direct[i] = {("cmd", aidx[p.axis])}
-        else:
-            direct[i] = set()
 
     def lin(o):
         s = set()

@@ -160,12 +160,10 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
         raise InputError("no feasible model in the search space (every candidate had a friction gain "
                          "of the wrong sign); widen the bounds or check the friction structure",
                          source=traces[0].source, column="bounds")
-    cands = [c for c, f in zip(cands, finished) if f is not None]
     finished = [f for f in finished if f is not None]
-    best = min(range(len(finished)), key=lambda k: finished[k]["free_run"])
-    model, fit, refinement, (real, cplx, vt) = (finished[best][k] for k in ("model", "fit", "refinement", "params"))
-    if len(finished) > 1:
-        fun, xbest = cands[best][0], par.canonical(cands[best][1])
+    chosen = min(finished, key=lambda c: c["free_run"])
+    model, fit, refinement, (real, cplx, vt) = (chosen[k] for k in ("model", "fit", "refinement", "params"))
+    fun = chosen["objective"]
     model.poles = rg.poles_from_parameters(list(real) + list(structure.locked_real_hz),
                                            list(cplx) + list(structure.locked_complex))
     model.method = "mimo"
@@ -185,7 +183,7 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
                               "zeta": bounds.zeta, "v_tilde": bounds.v_tilde}},
         "minima": [{"objective": f, **_describe(par, x)} for f, x in minima],
         "candidates": [{"objective": c["objective"], "selection_free_run": c["free_run"],
-                        **_describe(par, c["x"]), "chosen": k == best} for k, c in enumerate(finished)],
+                        **_describe(par, c["x"]), "chosen": c is chosen} for c in finished],
     }
     model.metrics = {
         "objective_scaled_rms": fit.J,
