@@ -16,7 +16,7 @@ import pytest
 
 from fdid_fmi.cli import main
 from fdid_fmi.errors import InputError
-from fdid_fmi.outputs import atomic_path, atomic_write, check_output
+from fdid_fmi.outputs import atomic_path, atomic_write, check_output, remove_orphan_temp_files
 
 TS = 1e-3
 FDID = [sys.executable, "-m", "fdid_fmi.cli"]
@@ -156,6 +156,22 @@ def test_atomic_helpers(tmp_path):
     os.symlink(p, tmp_path / "link.txt")
     with pytest.raises(InputError, match="overwrite the input"):
         check_output(tmp_path / "link.txt", inputs=[p])
+
+
+def test_orphan_temp_file_of_a_killed_writer_is_removed(tmp_path):
+    """A writer killed with SIGKILL inside ``atomic_path`` leaves its ``.part`` file; the fleet
+    runner sweeps such files once all its workers have stopped."""
+    p = tmp_path / "entry.json"
+    code = ("import os, signal, sys; from fdid_fmi.outputs import atomic_path\n"
+            "with atomic_path(sys.argv[1]) as tmp:\n"
+            "    tmp.write_text('half'); os.kill(os.getpid(), signal.SIGKILL)\n")
+    proc = subprocess.run([sys.executable, "-c", code, str(p)], check=False)
+    assert proc.returncode == -9
+    left = list(tmp_path.glob(".entry.json.*.part"))
+    assert len(left) == 1 and not p.exists()
+    (tmp_path / "keep.part").write_text("a user's file")
+    assert remove_orphan_temp_files(tmp_path) == left
+    assert sorted(os.listdir(tmp_path)) == ["keep.part"]
 
 
 # ----------------------------------------------------------------------------- option values

@@ -122,6 +122,18 @@ def atomic_path(path):
         raise
 
 
+def remove_orphan_temp_files(folder) -> list[Path]:
+    """Remove the temporary files :func:`atomic_path` leaves in ``folder`` when its writer was killed
+    (SIGKILL, power loss): ``.<name>.<random>.part``. Call only when no writer can still be running
+    there. Returns the removed paths."""
+    removed = []
+    for tmp in Path(folder).glob(".*.part"):
+        if tmp.is_file():
+            _unlink(tmp)
+            removed.append(tmp)
+    return removed
+
+
 def atomic_write(path, data) -> Path:
     """Write ``data`` (str: UTF-8, or bytes) to ``path`` atomically (see module docstring).
 

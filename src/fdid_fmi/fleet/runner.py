@@ -39,6 +39,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..errors import InputError
+from ..outputs import remove_orphan_temp_files
 from .compare import Thresholds
 from .manifest import Manifest, entry_hash, file_digest, load_manifest, software_version
 from .work import ENTRY_FILE, EntryResult, PreviousModel, WorkItem, run_entry
@@ -368,6 +369,9 @@ def run_fleet(manifest, out, previous=None, scheduler=None, workers=None, client
             bar.close()
         if ex is not None:
             ex.close()
+    # every worker has stopped: a temporary file left in an entry folder belongs to a killed writer
+    for item in todo:
+        remove_orphan_temp_files(item.entry_dir)
     fr = FleetResult(out=str(out), manifest=str(man.source), previous=prev_name,
                      executor=ex.name if ex is not None else "none (nothing to do)",
                      workers=ex.workers if ex is not None else 0,
