@@ -23,7 +23,8 @@ def register(sub):
                        description="Residual of the model's free run -> detectors (friction at reversals, "
                                    "mode, dead time, position-periodic force, coupling / unused channels) -> "
                                    "augment and refit -> keep only what lowers the held-out error.")
-    p.add_argument("model", help="model JSON (pole-search or MIMO) written by fdid identify")
+    p.add_argument("model", help="model JSON (pole-search or MIMO; one axis or the combined per-axis "
+                                 "model of several) written by fdid identify")
     p.add_argument("--train", required=True, help="trace the effects are fitted on")
     p.add_argument("--val", default=None,
                    help="held-out trace the keep criterion is judged on (default: the training trace is "
@@ -87,10 +88,17 @@ def run(args):
         raise InputError(f"--max-steps must be in 1 .. 20, got {args.max_steps}", column="--max-steps")
     if not 1 <= args.maxiter <= 10000:
         raise InputError(f"--maxiter must be in 1 .. 10000, got {args.maxiter}", column="--maxiter")
+    from . import naming
+    from ..diagnose.augment import recipe_from_model
+    from ..diagnose.loop import split_blocks
     model = load_model(args.model)
     if not isinstance(model, DriveModel):
-        raise InputError("diagnosis needs a state-space model (pole search / MIMO), not a quasi-static one",
-                         source=args.model)
+        raise InputError("diagnosis refits the model with the pole search and needs a pole-search or MIMO "
+                         "model (fdid identify --method pole-search or mimo), not a quasi-static one",
+                         source=args.model, column="identification")
+    with naming(args.model):            # refuse a model (or block) that cannot be refitted, naming the file
+        for block in split_blocks(model):
+            recipe_from_model(block)
     train = _ranged(trace_from_args(args.train, args), args.train_range, "--train-range")
     val = _ranged(trace_from_args(args.val, args), args.val_range, "--val-range") if args.val else None
     for tr, what, need in ((train, "--train", MIN_SAMPLES * (1 if val is not None else 2)),
@@ -105,6 +113,10 @@ def run(args):
                     progress=lambda m: print(f"  {m}", file=sys.stderr))
     fmu = fmu_check(diag) if args.fmu else None
     print(f"effects added: {[e['kind'] for e in diag.effects_added] or 'none'}")
+    for ax, d in diag.axes.items():     # combined per-axis model: the findings of each block
+        det = sorted({c["kind"] for r in d.rounds for c in r["candidates"] if c["detected"]})
+        print(f"  axis {ax}: detected {', '.join(det) or 'nothing'}; "
+              f"kept {', '.join(e['kind'] for e in d.effects_added) or 'none'}")
     for tname in diag.before:
         for ch, b in diag.before[tname].items():
             a = diag.after[tname][ch]

@@ -70,6 +70,8 @@ class Recipe:
     new_pairs: list = field(default_factory=list)    # bounds [(lo_hz, hi_hz, zlo, zhi)] searched
     delays: dict = field(default_factory=dict)       # axis -> samples
     effects: list = field(default_factory=list)      # effect dicts added by diagnosis
+    reserved: set = field(default_factory=set)       # port names new inputs must not take (the
+                                                     # other blocks of a combined per-axis model)
 
     @property
     def order(self):
@@ -86,14 +88,21 @@ class Recipe:
         return [s.name for s in self.inputs]
 
 
-def recipe_from_model(model: DriveModel) -> Recipe:
-    """Recipe of a pole-search / MIMO model (``identification["structure"]`` must be present)."""
+def recipe_from_model(model: DriveModel, reserved=()) -> Recipe:
+    """Recipe of a pole-search / MIMO model (``identification["structure"]`` must be present).
+
+    A combined per-axis model (``identification["blocks"]``) is diagnosed block by block
+    (:func:`.loop.split_blocks`); ``reserved`` are port names of the other blocks, which inputs
+    added to this block must not take (the combined model needs unique names).
+    """
     ident = model.identification or {}
     st = ident.get("structure")
     if not st:
-        raise InputError("diagnosis refits the model with the pole search and needs a pole-search or "
-                         "MIMO model (its identification has no 'structure'; quasi-static, Full-LS and "
-                         "combined per-axis models are not supported)", column="identification")
+        what = ("a combined per-axis model: diagnose its blocks (diagnose() splits it)"
+                if ident.get("blocks") else f"method '{model.method or 'unknown'}'")
+        raise InputError(f"diagnosis refits the model with the pole search and needs a pole-search or "
+                         f"MIMO model (fdid identify --method pole-search or mimo); this model's "
+                         f"identification has no 'structure' ({what})", column="identification")
     ins = [InputSpec(**{k: v for k, v in d.items() if k in ("kind", "axis", "channel", "params", "name")})
            for d in st["inputs"]]
     outs = [OutputSpec(**{k: v for k, v in d.items()
@@ -125,7 +134,7 @@ def recipe_from_model(model: DriveModel) -> Recipe:
                   real_hz=real, complex_hz_zeta=cplx,
                   v_tilde={a: float(v) for a, v in vt.items()},
                   delays={a: int(d) for a, d in diag.get("delays", {}).items()},
-                  effects=list(model.effects))
+                  effects=list(model.effects), reserved=set(reserved))
 
 
 # ------------------------------------------------------------------------- structure
@@ -330,7 +339,7 @@ def _force_path_masks(recipe, axis, new_name, outputs=None):
 
 
 def _unique(recipe, name):
-    names = set(recipe.input_names())
+    names = set(recipe.input_names()) | set(recipe.reserved)
     base, k = name, 2
     while name in names:
         name = f"{base}_{k}"
@@ -375,10 +384,21 @@ def add_periodic(recipe, axis, period_mm):
     return r
 
 
+TOOL_KINDS = ("tool_error", "tool_position")
+
+
+def is_tool_side(o):
+    """True for a fitted output that is or predicts the tool side: measured there (``tool_error``,
+    ``tool_position``) or integrated to it (a tool-side ``acceleration`` with two integrators
+    predicts ``tool_position``, Eqn 5.26-5.29)."""
+    return o.kind in TOOL_KINDS or getattr(o, "predicts", None) in TOOL_KINDS
+
+
 def add_tool_output(recipe, axis):
-    """Recipe with a fitted tool-side output (tool_error, same inputs and masks as the error)."""
+    """Recipe with a fitted tool-side output (tool_error, same inputs and masks as the error);
+    unchanged when an output of the axis already is or predicts the tool side (:func:`is_tool_side`)."""
     r = recipe.copy()
-    if any(o.axis == axis and o.kind in ("tool_error", "tool_position") for o in r.outputs):
+    if any(o.axis == axis and is_tool_side(o) for o in r.outputs):
         return r
     ref = next((o for o in r.outputs if o.axis == axis and o.kind == "error"), None)
     if ref is None:
@@ -396,7 +416,7 @@ def add_backlash(recipe, axis, v_b):
     """Feature sat(v / v_b) on a tool-side output (added if missing), none on the motor side."""
     r = add_tool_output(recipe, axis)
     n = r.order
-    tool = [o for o in r.outputs if o.axis == axis and o.kind in ("tool_error", "tool_position")]
+    tool = [o for o in r.outputs if o.axis == axis and is_tool_side(o)]
     nm = _unique(r, f"{axis}_backlash")
     r.inputs.append(InputSpec("feature", axis, params={"function": "sat", "v_tilde": float(v_b),
                                                       "source": "position"}, name=nm))
@@ -460,12 +480,23 @@ def describe_fitted(model: DriveModel, effect: dict) -> dict:
         b = nums.get(key)
         a = ident.get("denominator")
         if b is not None and a is not None:
-            e["backlash_mm"] = float(abs(2.0 * b[-1] / a[-1]))   # d.c. offset = -b/2 per direction
+            # d.c. offset = -b/2 per direction, of the predicted position: an output fitted before
+            # q integrators (Eqn 5.29) has its s^0 term of the position at b[n - q]
+            q = _integrators(ident, e["output"])
+            e["backlash_mm"] = float(abs(2.0 * b[len(b) - 1 - q] / a[-1]))
     if e["kind"] == "periodic_position":
         amp = _periodic_amplitude(model, e)
         if amp is not None:
             e["ratio_to_coulomb"] = amp
     return e
+
+
+def _integrators(ident, output):
+    """Integrators appended after the fit of a structure output (0 when not recorded)."""
+    for o in (ident.get("structure") or {}).get("outputs", []):
+        if o.get("name") == output:
+            return int(o.get("integrators") or 0)
+    return 0
 
 
 def _ratio_to_friction(model, axis, name, nums):

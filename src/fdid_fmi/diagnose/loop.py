@@ -15,12 +15,20 @@ position, and its tool side when measured) falls by at least ``min_gain`` (defau
 to the better of the current model and the null refit, and no scored channel rises by more than
 ``max_loss`` (default 1 %). The loop stops when no candidate is detected or none is kept, or after
 ``max_steps`` effects.
+
+Combined per-axis models (``fdid identify`` on a trace with several axes: ``DriveModel.combine``,
+``identification["blocks"]``) are diagnosed block by block: :func:`split_blocks` rebuilds each
+axis's block as the model it was identified as, each is diagnosed on its own axis (detectors,
+refits and the keep criterion see only that axis's channels; other axes' commands are candidate
+coupling inputs), and the diagnosed blocks are combined again. ``Diagnosis.axes`` holds the
+per-axis results.
 """
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
 
+import numpy as np
 
 from ..errors import InputError
 from ..model import DriveModel
@@ -65,6 +73,7 @@ class Diagnosis:
     settings: dict = field(default_factory=dict)
     wall_time_s: float = 0.0
     split: str = ""
+    axes: dict = field(default_factory=dict)        # combined model: axis -> Diagnosis of its block
 
     @property
     def effects_added(self):
@@ -73,7 +82,7 @@ class Diagnosis:
     def to_json(self):
         """The JSON summary (``effects_added``, ``before`` / ``after`` per trace and axis)."""
         from ..report import _jsonable
-        return _jsonable({
+        out = {
             "effects_added": self.effects_added,
             "before": _per_axis(self.before), "after": _per_axis(self.after),
             "steps": [{"effect": s.effect, "before": _per_axis(s.before), "after": _per_axis(s.after),
@@ -82,7 +91,14 @@ class Diagnosis:
             "tests": {"before": self.tests_before, "after": self.tests_after},
             "criterion": {"min_gain": self.settings.get("min_gain"), "max_loss": self.settings.get("max_loss")},
             "split": self.split, "wall_time_s": self.wall_time_s,
-        })
+        }
+        if self.axes:       # combined per-axis model: the findings of every axis
+            out["per_axis"] = {a: {"effects_added": d.effects_added, "before": _per_axis(d.before),
+                                   "after": _per_axis(d.after), "rounds": len(d.rounds),
+                                   "detected": sorted({c["kind"] for r in d.rounds for c in r["candidates"]
+                                                       if c["detected"]})}
+                               for a, d in self.axes.items()}
+        return _jsonable(out)
 
 
 def _per_axis(table):
@@ -131,13 +147,163 @@ def _gain(ref, new):
             for ch in ref if ch in new}
 
 
+def _runs(ports, what):
+    """[(axis, [indices])] of consecutive ports of the same axis."""
+    runs = []
+    for i, p in enumerate(ports):
+        if p.axis is None:
+            raise InputError(f"{what} '{p.name}' of a combined model has no axis; the model cannot be "
+                             "split into its per-axis blocks", column="identification")
+        if runs and runs[-1][0] == p.axis:
+            runs[-1][1].append(i)
+        else:
+            runs.append((p.axis, [i]))
+    return runs
+
+
+def _block_part(d, k):
+    """Entry k of ``d["blocks"]`` (metrics, provenance of a combined model), or {}."""
+    blocks = d.get("blocks") if isinstance(d, dict) else None
+    return blocks[k] if isinstance(blocks, list) and k < len(blocks) and isinstance(blocks[k], dict) else {}
+
+
+def split_blocks(model: DriveModel):
+    """The per-axis blocks of a combined model (:meth:`DriveModel.combine`), each as a DriveModel.
+
+    ``combine`` stacks the blocks' A, B, C, D block-diagonally and concatenates their inputs,
+    outputs, poles and effects; ``identification``, ``metrics`` and ``provenance`` hold one entry
+    per block under ``"blocks"``. Each block's ports are the consecutive run of its axis; its
+    states are those connected (through non-zero entries of A, B, C) to its ports, and must be one
+    contiguous range not connected to any other block (exact zeros off the block diagonal).
+
+    Returns
+    -------
+    list of DriveModel, one per block (the model itself in a list when it is not combined)
+
+    Raises
+    ------
+    InputError
+        ``identification["blocks"]`` does not describe the ports and states of the model.
+    """
+    blocks = (model.identification or {}).get("blocks")
+    if not blocks:
+        return [model]
+    rin, rout = _runs(model.inputs, "input"), _runs(model.outputs, "output")
+    nb = len(blocks)
+    if len(rin) != nb or len(rout) != nb or [a for a, _ in rin] != [a for a, _ in rout]:
+        raise InputError(f"identification lists {nb} blocks but the model's ports form "
+                         f"{len(rin)} input and {len(rout)} output runs of one axis each; the combined "
+                         "model cannot be split into its per-axis blocks", column="identification")
+    n = model.n_states
+    parent = list(range(n + nb))            # union-find: states, then one node per block
+
+    def find(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    def union(i, j):
+        parent[find(i)] = find(j)
+
+    for k, ((_, ii), (_, oo)) in enumerate(zip(rin, rout)):
+        for s_ in np.flatnonzero(np.any(model.B[:, ii] != 0, axis=1) | np.any(model.C[oo, :] != 0, axis=0)):
+            union(int(s_), n + k)
+    for i, j in zip(*np.nonzero(model.A)):
+        union(int(i), int(j))
+    roots = {find(n + k): k for k in range(nb)}
+    if len(roots) != nb:
+        raise InputError("the blocks of the combined model are coupled (non-zero entries between "
+                         "blocks); it cannot be diagnosed block by block", column="identification")
+    owner = [roots.get(find(i)) for i in range(n)]
+    for i in range(n):                      # a state connected to no port: the block before it
+        if owner[i] is None:
+            owner[i] = owner[i - 1] if i and owner[i - 1] is not None else 0
+    if any(b < a for a, b in zip(owner, owner[1:])):
+        raise InputError("the states of the combined model's blocks are interleaved; it cannot be "
+                         "split into its per-axis blocks", column="identification")
+    out = []
+    disc = [np.linalg.eigvals(model.A[np.ix_(S, S)]) for S in
+            [[i for i in range(n) if owner[i] == k] for k in range(nb)]]
+    counts = [len(b.get("real_hz", [])) + len(b.get("locked_real_hz", [])) + 2 * (
+        len(b.get("complex_hz_zeta", [])) + len(b.get("locked_complex", [])))
+        if isinstance(b, dict) else -1 for b in blocks]
+    if sum(counts) == len(model.poles) and min(counts) >= 0:    # in block order, as combined
+        edges = np.cumsum([0] + counts)
+        poles_of = [list(model.poles[edges[k]:edges[k + 1]]) for k in range(nb)]
+    else:                       # each continuous pole to the block whose discrete poles hold it
+        poles_of = [[] for _ in range(nb)]
+        for p in model.poles:
+            z = np.exp(complex(p) * model.Ts)
+            k = min(range(nb), key=lambda b: np.min(np.abs(disc[b] - z)) if disc[b].size else np.inf)
+            poles_of[k].append(p)
+    for k, ((ax, ii), (_, oo)) in enumerate(zip(rin, rout)):
+        S = [i for i in range(n) if owner[i] == k]
+        ident = blocks[k] if isinstance(blocks[k], dict) else {}
+        out.append(DriveModel(
+            Ts=model.Ts, A=model.A[np.ix_(S, S)], B=model.B[np.ix_(S, ii)], C=model.C[np.ix_(oo, S)],
+            D=model.D[np.ix_(oo, ii)], inputs=[model.inputs[i] for i in ii],
+            outputs=[model.outputs[o] for o in oo], method=model.method, poles=poles_of[k],
+            identification=ident, metrics=_block_part(model.metrics, k),
+            provenance=_block_part(model.provenance, k),
+            effects=[e for e in model.effects if e.get("axis") == ax]))
+    return out
+
+
+def _combined(model, blocks, train, val, split, kw, say, t0):
+    """Diagnose every block of a combined model on its own axis and combine the results."""
+    names = {p.name for p in model.inputs} | {p.name for p in model.outputs}
+    subs = {}
+    for b in blocks:
+        ax = b.axes[0] if b.axes else b.outputs[0].axis
+        own = {p.name for p in b.inputs} | {p.name for p in b.outputs}
+        say(f"axis {ax}: diagnosing its block")
+        subs[ax] = diagnose(b, train, val, progress=lambda m, ax=ax: say(f"axis {ax}: {m}"),
+                            _reserved=names - own, **kw)
+    changed = any(d.final is not d.model for d in subs.values())
+    if changed:
+        final = DriveModel.combine([d.final for d in subs.values()],
+                                   method=model.method + "+diagnose" if "diagnose" not in model.method
+                                   else model.method)
+    else:
+        final = model
+    diag = Diagnosis(model=model, final=final, train=train, val=val, settings=next(iter(subs.values())).settings,
+                     split=split, axes=subs)
+
+    def merged(attr):
+        out = {}
+        for d in subs.values():
+            for tname, v in getattr(d, attr).items():
+                out.setdefault(tname, {}).update(v)
+        return out
+
+    diag.before, diag.after = merged("before"), merged("after")
+    diag.tests_before, diag.tests_after = merged("tests_before"), merged("tests_after")
+    for attr in ("residual_before", "residual_after"):
+        res = {}
+        for tname, tr in (("train", train), ("val", val)):
+            r = Residuals(trace=tr, t=np.asarray(tr.t))
+            for d in subs.values():
+                r.axes.update(getattr(d, attr)[tname].axes)
+            res[tname] = r
+        setattr(diag, attr, res)
+    for ax, d in subs.items():
+        diag.steps.extend(d.steps)
+        diag.rounds.extend({**r, "axis": ax} for r in d.rounds)
+    diag.wall_time_s = time.perf_counter() - t0
+    return diag
+
+
 def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, max_loss=0.01,
-             max_steps=4, maxiter=25, exclude=(), max_delay=6, progress=None) -> Diagnosis:
+             max_steps=4, maxiter=25, exclude=(), max_delay=6, progress=None, _reserved=()) -> Diagnosis:
     """Find what the residual says the model lacks, add it, and report the error before and after.
 
     Parameters
     ----------
-    model : DriveModel from the pole search (``identify_siso`` / ``identify_mimo``)
+    model : DriveModel from the pole search (``identify_siso`` / ``identify_mimo``), or their
+        per-axis combination (``DriveModel.combine``, what ``fdid identify`` writes for several
+        axes): each block is then diagnosed on its own axis and the results combined again
+        (module docstring; ``Diagnosis.axes``)
     train : Trace, measured data the effects are fitted on
     val : Trace, held-out data the keep criterion is judged on. Default: ``train`` is split in
         halves, the first to fit, the second held out.
@@ -152,6 +318,12 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     Returns
     -------
     Diagnosis
+
+    Raises
+    ------
+    InputError
+        The model (or a block of it) is not a pole-search / MIMO model (quasi-static, Full LS:
+        no ``identification["structure"]``), a trace does not fit it, or an option is invalid.
     """
     t0 = time.perf_counter()
     say = progress or (lambda msg: None)
@@ -169,7 +341,14 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
             raise InputError(f"unknown detector '{nm}'; choose from {sorted(DETECTORS)}", column="detectors")
     settings = {"min_gain": min_gain, "max_loss": max_loss, "max_steps": max_steps, "maxiter": maxiter,
                 "exclude": list(exclude), "max_delay": max_delay, "detectors": names}
-    recipe = ag.recipe_from_model(model)
+    blocks = split_blocks(model)
+    for b in blocks:                    # refuse a block that cannot be refitted before any work
+        ag.recipe_from_model(b)
+    if len(blocks) > 1 or blocks[0] is not model:
+        kw = dict(detectors=names, min_gain=min_gain, max_loss=max_loss, max_steps=max_steps,
+                  maxiter=maxiter, exclude=exclude, max_delay=max_delay)
+        return _combined(model, blocks, train, val, split, kw, say, t0)
+    recipe = ag.recipe_from_model(model, reserved=_reserved)
     current = model
     res0 = {"train": residuals(model, train), "val": residuals(model, val)}
     diag = Diagnosis(model=model, final=model, train=train, val=val, settings=settings, split=split)

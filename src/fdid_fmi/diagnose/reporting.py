@@ -148,6 +148,9 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
     summary = ("Effects added: " + ("; ".join(f"{e['kind']} ({_fmt_params(e)})" for e in eff)
                                     if eff else "none (no candidate met the keep criterion)") + ".")
     rep.add_text(summary, heading="Summary")
+    if diag.axes:       # combined per-axis model: what each axis's block showed
+        rep.add_table("per_axis", per_axis_rows(diag),
+                      caption="combined per-axis model: every block diagnosed on its own axis")
     rep.add_text(
         f"Residual = measured - free-run prediction. An effect is kept only if the held-out RMS of some "
         f"scored channel falls by at least {100 * s['min_gain']:.0f} % (against the better of the current "
@@ -162,7 +165,7 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
             rep.add_text("FMU check: both models exported as FMI 2.0 co-simulation FMUs and run through "
                          "fmpy on the same traces; largest |FMU - reference simulator| = "
                          f"{max(fmu['before']['max_abs_diff_reference_mm'], fmu['after']['max_abs_diff_reference_mm']):.3g} mm.")
-    for i, st in enumerate(diag.steps, 1):
+    for i, (st, owner, k) in enumerate(_steps(diag), 1):
         e = st.effect
         rep.add_heading(f"Step {i}: {e['kind']} on axis {e['axis']}")
         rep.add_text(f"Fitted parameters: {_fmt_params(e)}")
@@ -170,7 +173,7 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
                       caption=f"error before / after step {i}")
         fig, data = _residual_figure(f"step {i}: {e['kind']}", st.residual_before, st.residual_after)
         rep.add_figure(f"step{i}_residual", fig, data, caption="residual before (red) and after (blue)")
-        plot = _round_plot(diag, i, e["kind"], e["axis"])
+        plot = _round_plot(owner, k, e["kind"], e["axis"])
         if plot:
             f2, d2 = _evidence_figure({"kind": e["kind"], "plot": plot})
             if f2 is not None:
@@ -188,7 +191,8 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
                          "kept": "yes" if trial.get("kept") else ("implausible: " + trial["implausible"]
                                                                   if trial.get("implausible") else "no"),
                          "note": c["note"]})
-        rep.add_table(f"round{rnd['round']}", rows)
+        rep.add_table(f"{rnd['axis']}_round{rnd['round']}" if "axis" in rnd else f"round{rnd['round']}",
+                      rows, caption=f"axis {rnd['axis']}" if "axis" in rnd else "")
     rep.add_heading("What is left: whiteness and input cross-correlation")
     rows = []
     for label, tests in (("before", diag.tests_before), ("after", diag.tests_after)):
@@ -206,6 +210,28 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
     from ..report import add_model_section
     add_model_section(rep, diag.final, heading="The model after diagnosis")
     return rep
+
+
+def per_axis_rows(diag):
+    """One row per axis of a combined model's diagnosis: detected candidates, kept effects and
+    the held-out RMS of the axis's channels before and after."""
+    rows = []
+    for a, d in diag.axes.items():
+        det = sorted({c["kind"] for r in d.rounds for c in r["candidates"] if c["detected"]})
+        kept = [e["kind"] for e in d.effects_added]
+        val_b, val_a = d.before.get("val", {}), d.after.get("val", {})
+        rows.append({"axis": a, "detected": ", ".join(det) or "nothing",
+                     "kept": ", ".join(kept) or "none",
+                     "held-out RMS [µm]": "; ".join(f"{ch}: {val_b[ch]['rms_um']:.4g} -> "
+                                                    f"{val_a[ch]['rms_um']:.4g}" for ch in val_b)})
+    return rows
+
+
+def _steps(diag):
+    """(step, diagnosis that owns its rounds, 1-based step number there) of every kept effect."""
+    for owner in (diag.axes.values() if diag.axes else [diag]):
+        for k, st in enumerate(owner.steps, 1):
+            yield st, owner, k
 
 
 def _round_plot(diag, i, kind, axis):
