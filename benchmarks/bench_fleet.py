@@ -46,8 +46,9 @@ def main(argv=None):
     rows, split = [], {}
     with tempfile.TemporaryDirectory(prefix="bench_fleet_") as tmp:
         tmp = Path(tmp)
+        # the thesis's rigid-body structure: the scheduler's throughput, not the structure choice
         man = write_virtual_fleet(tmp / "data", n_machines=args.machines, nights=(1,),
-                                  diagnose=not args.no_diagnose)[1]
+                                  diagnose=not args.no_diagnose, extra_options={"structure": "rigid"})[1]
         for w in counts:
             ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
             wall, fr = timed(lambda: run_fleet(man, tmp / f"w{w}", workers=w, progress=False))

@@ -25,7 +25,8 @@ CHANGES = {("m01", "x"): "friction", ("m02", "y"): "backlash"}
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory):
     root = tmp_path_factory.mktemp("fleet")
-    man = write_virtual_fleet(root / "data", n_machines=2, changes=CHANGES, n_moves=4, diagnose=False)
+    man = write_virtual_fleet(root / "data", n_machines=2, changes=CHANGES, n_moves=4, diagnose=False,
+                              extra_options={"structure": "rigid"})   # the fleet, not the structure choice, under test
     # night 1 plus three broken entries: a missing file, an unknown column, a bad option
     text = man[1].read_text() + """
 [[entry]]

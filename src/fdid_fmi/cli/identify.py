@@ -53,6 +53,14 @@ def register(sub):
     p.add_argument("--axis", action="append", default=None,
                    help="axis to identify (repeatable; default: every axis with cmd and act)")
     s = p.add_argument_group("pole search")
+    s.add_argument("--structure", choices=("auto", "rigid"), default=None,
+                   help="auto: choose the structure of each axis from the data (rigid body, 2 real poles, "
+                        "2 complex pairs, both; with and without integral action; by training free run "
+                        "with a 5%% parsimony rule); rigid: the thesis's SISO model. Default: auto, unless "
+                        "--n-real/--n-complex/--real-hz/--omega-hz/--zeta/--no-integral-action/"
+                        "--no-friction/--v-tilde-range pin the structure")
+    s.add_argument("--jobs", type=_int_in(1, 1024, "--jobs"), default=None,
+                   help="processes fitting the candidate structures of --structure auto (default: one per core)")
     s.add_argument("--search", choices=("de", "multistart", "direct"), default="de",
                    help="global optimiser (thesis: GlobalSearch / MultiStart / pattern search)")
     s.add_argument("--seed", type=_int_in(0, 2 ** 32 - 1, "the seed"), default=0,
@@ -159,6 +167,7 @@ def _dc_gain(v, it):
 
 def check_arguments(args):
     """Check the identification options before the trace is read (one line on a bad value)."""
+    structure_is_auto(args)     # --structure auto against a pinning flag
     n_real, n_complex = _orders(args)
     if n_real + 2 * n_complex > MAX_ORDER:
         raise InputError(f"{n_real} real poles and {n_complex} complex pairs make order "
@@ -231,6 +240,21 @@ def bounds_from_args(args, Ts, n_real, n_complex):
     vt = _range(args.v_tilde_range, "--v-tilde-range") if args.v_tilde_range else None
     return Bounds(real, omega, zeta, vt)
 
+PINNING = ("n_real", "n_complex", "real_hz", "omega_hz", "zeta", "v_tilde_range")
+
+
+def structure_is_auto(args):
+    """True when the pole search chooses the structure (no flag pins it)."""
+    if args.method != "pole-search" or getattr(args, "structure", None) == "rigid":
+        return False
+    pinned = [k for k in PINNING if getattr(args, k, None)] + \
+        [k for k in ("no_integral_action", "no_friction") if getattr(args, k, False)]
+    if pinned and args.structure == "auto":
+        raise InputError(f"--structure auto chooses the structure; it cannot be combined with "
+                         f"{', '.join('--' + k.replace('_', '-') for k in pinned)}", source="--structure")
+    return not pinned
+
+
 def identify_from_args(trace, args, progress=True):
     """Run the identification the arguments ask for; returns the model."""
     from .. import identify as idf
@@ -245,6 +269,12 @@ def identify_from_args(trace, args, progress=True):
         models = [idf.identify_full_ls(pieces, ax, cutoff_hz=args.cutoff_hz, order=args.filter_order)
                   for ax in axes]
         return models[0] if len(models) == 1 else DriveModel.combine(models, method="full-ls")
+    if structure_is_auto(args):
+        models = [idf.identify_auto(pieces, ax, same_sample=args.same_sample, v_tilde=args.v_tilde,
+                                    method=args.search, seed=args.seed, maxiter=args.maxiter,
+                                    velocity=args.velocity, ma_order=args.ma_order,
+                                    workers=getattr(args, "jobs", None)) for ax in axes]
+        return models[0] if len(models) == 1 else DriveModel.combine(models, method="pole-search")
     n_real, n_complex = _orders(args)
     bounds = bounds_from_args(args, trace.Ts, n_real, n_complex)
     common = dict(bounds=bounds, v_tilde=args.v_tilde, method=args.search, seed=args.seed,
@@ -281,6 +311,9 @@ def summary(model, trace=None):
         ident = model.identification
         blocks = ident.get("blocks", [ident])
         for b in blocks:
+            if "structure_choice" in b:
+                from ..identify import StructureChoice
+                lines += StructureChoice.from_dict(b["structure_choice"]).table()
             if "real_hz" in b:
                 cp = ", ".join(f"{w:.3f} Hz / zeta {z:.4f}" for w, z in b["complex_hz_zeta"])
                 rp = ", ".join(f"{p:.3f} Hz" for p in b["real_hz"])

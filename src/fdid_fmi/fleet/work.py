@@ -225,6 +225,8 @@ def _identify(spec, trace):
     args = identify_args(spec.traces[0], spec)
     if not args.axis:
         args.axis = [spec.axis]
+    if args.jobs is None:       # the fleet runs its entries in parallel already
+        args.jobs = 1
     if spec.axis not in trace.axes or not (trace.has(spec.axis, "cmd") and trace.has(spec.axis, "act")):
         raise InputError(f"the trace has no axis '{spec.axis}' with 'cmd' and 'act' channels "
                          f"(axes found: {trace.axes}); check the entry's map", source=spec.traces[0])
