@@ -96,9 +96,6 @@ def run(args):
         raise InputError("diagnosis refits the model with the pole search and needs a pole-search or MIMO "
                          "model (fdid identify --method pole-search or mimo), not a quasi-static one",
                          source=args.model, column="identification")
-    with naming(args.model):            # refuse a model (or block) that cannot be refitted, naming the file
-        for block in split_blocks(model):
-            recipe_from_model(block)
     train = _ranged(trace_from_args(args.train, args), args.train_range, "--train-range")
     val = _ranged(trace_from_args(args.val, args), args.val_range, "--val-range") if args.val else None
     for tr, what, need in ((train, "--train", MIN_SAMPLES * (1 if val is not None else 2)),
@@ -107,6 +104,9 @@ def run(args):
             raise InputError(f"has {tr.n} samples; diagnosis needs at least {need} "
                              f"({'fit and held-out halves of ' if need > MIN_SAMPLES else ''}"
                              f"{MIN_SAMPLES} samples each)", source=tr.source, column=what)
+    with naming(args.model):            # refuse a model (or block) that cannot be refitted, naming the file
+        for block in split_blocks(model):
+            recipe_from_model(block)
     dets = [d.strip() for d in args.detectors.split(",")] if args.detectors else None
     diag = diagnose(model, train, val, detectors=dets, min_gain=args.min_gain, max_loss=args.max_loss,
                     max_steps=args.max_steps, maxiter=args.maxiter, exclude=args.exclude,
