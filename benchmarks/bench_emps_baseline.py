@@ -49,7 +49,7 @@ EMPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "emps"
 
 T_SETTLED = 0.5        # s: training figure from here on (and over the whole record)
 T_FIRST_PULSE = 0.34   # s: PULSES record up to here (first pulse at 0.344 s)
-LAGS = (2, 4, 6, 8, 10)  # NARX candidates, ylag = xlag = n samples (1 ms each)
+LAGS = (2, 4, 6, 8, 10, 15)  # NARX candidates, ylag = xlag = n samples (1 ms each)
 
 # ../shared/data/README.md, after A. Janot, M. Gautier, M. Brunot, "Data Set and Reference Models of
 # EMPS", 2019 Workshop on Nonlinear System Identification Benchmarks: closed-loop simulation of the
@@ -151,6 +151,7 @@ def narx_rows(train, quiet, test):
         terms = [" * ".join(_term(c) for c in code if c) or "1" for code in m.final_model]
         rows.append({"model": f"SysIdentPy NARX, degree {degree}, lags {best}", "kind": "NARX",
                      "degree": degree, "ylag": best, "xlag": best, "n_terms": int(m.n_terms),
+                     "n_quadratic_terms": int(sum(all(c) for c in m.final_model)),
                      "terms": terms, "theta": [float(v) for v in np.ravel(m.theta)], "fit_cpu_s": cpu,
                      **figures(free_run(m, train), train, free_run(m, quiet), quiet, free_run(m, test), test)})
     settings = {"sysidentpy": sysidentpy.__version__, "algorithm": "FROLS (ERR ranking)",
