@@ -234,7 +234,7 @@ def split_blocks(model: DriveModel):
     else:                       # each continuous pole to the block whose discrete poles hold it
         poles_of = [[] for _ in range(nb)]
         for p in model.poles:
-            z = np.exp(complex(p) * model.Ts)
+            z = (1 + complex(p) * model.Ts / 2) / (1 - complex(p) * model.Ts / 2)   # Tustin, as realised
             k = min(range(nb), key=lambda b: np.min(np.abs(disc[b] - z)) if disc[b].size else np.inf)
             poles_of[k].append(p)
     for k, ((ax, ii), (_, oo)) in enumerate(zip(rin, rout)):
