@@ -19,7 +19,9 @@ simulated in free run (`predict(..., steps_ahead=None)`: only its first max-lag 
 are taken from the measurement, as initial conditions). Models are simulated with
 `fdid_fmi.simulate.simulate`.
 
-    .venv/bin/pip install -e ".[bench]"     (SysIdentPy; without it the NARX rows are skipped)
+    .venv/bin/pip install "sysidentpy>=0.9"     (the `bench` extra; without it the NARX rows are skipped.
+        SysIdentPy 0.9.0 pins numpy<=2.3.5 and pip downgrades numpy for it; this script's figures were
+        measured with numpy 2.4.6 put back afterwards, which SysIdentPy runs with, pip only warns)
     .venv/bin/python benchmarks/bench_emps_baseline.py [--emps DIR] [--out FILE]
 
 Writes benchmarks/results/bench_emps_baseline.json and prints a markdown table; single core
@@ -103,6 +105,7 @@ def pole_search_rows(train, quiet, test):
                      "real_hz": [float(p) for p in ident.get("real_hz", [])],
                      "complex_hz_zeta": [[float(a) for a in p] for p in ident.get("complex_hz_zeta", [])],
                      "v_tilde_mm_s": ident.get("v_tilde_mm_s"),
+                     "same_sample": (ident.get("same_sample_choice") or {}).get("chosen"),
                      **figures(pos["train"], train, pos["quiet"], quiet, pos["test"], test)})
         print(f"  {name}: {rows[-1]['train_all_um']:.3f} / {rows[-1]['pulses_before_1st_um']:.3f} µm, "
               f"{cpu:.1f} s CPU", flush=True)
@@ -151,7 +154,7 @@ def narx_rows(train, quiet, test):
         terms = [" * ".join(_term(c) for c in code if c) or "1" for code in m.final_model]
         rows.append({"model": f"SysIdentPy NARX, degree {degree}, lags {best}", "kind": "NARX",
                      "degree": degree, "ylag": best, "xlag": best, "n_terms": int(m.n_terms),
-                     "n_quadratic_terms": int(sum(all(c) for c in m.final_model)),
+                     "n_quadratic_terms": int(sum(np.count_nonzero(code) >= 2 for code in m.final_model)),
                      "terms": terms, "theta": [float(v) for v in np.ravel(m.theta)], "fit_cpu_s": cpu,
                      **figures(free_run(m, train), train, free_run(m, quiet), quiet, free_run(m, test), test)})
     settings = {"sysidentpy": sysidentpy.__version__, "algorithm": "FROLS (ERR ranking)",
@@ -206,7 +209,8 @@ def main():
           "| PULSES t ≤ 0.34 s [µm] | PULSES whole (pulses unknown) [µm] | fit CPU [s] |")
     print("|---|---:|---:|---:|---:|---:|")
     for r in rows:
-        print(f"| {r['model']} | {r['train_all_um']:.2f} | {r['train_from_0.5s_um']:.2f} | "
+        name = r["model"] + (f" [{r['same_sample']}]" if r.get("same_sample") else "")
+        print(f"| {name} | {r['train_all_um']:.2f} | {r['train_from_0.5s_um']:.2f} | "
               f"{r['pulses_before_1st_um']:.2f} | {r['pulses_all_um']:.1f} | {r['fit_cpu_s']:.1f} |")
     print(f"| published physics model (needs controller law and gains) | ≈ {PUBLISHED_UM['train']} | | "
           f"| ≈ {PUBLISHED_UM['test']} (pulses known) | |")
