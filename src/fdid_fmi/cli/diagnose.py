@@ -38,7 +38,7 @@ def register(sub):
                    help="keep an effect only if the held-out RMS falls by at least this fraction (0.05)")
     p.add_argument("--max-loss", type=float, default=0.01,
                    help="... and no scored channel rises by more than this fraction (0.01)")
-    p.add_argument("--max-steps", type=int, default=4, help="at most this many effects added")
+    p.add_argument("--max-steps", type=int, default=4, help="at most this many effects added (per axis of a combined per-axis model)")
     p.add_argument("--maxiter", type=int, default=25, help="DE iterations of each refit")
     p.add_argument("--detectors", default=None,
                    help="comma list of detector families (friction, mode, delay, periodic, coupling)")

@@ -309,7 +309,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         halves, the first to fit, the second held out.
     detectors : names from DETECTORS to run (default all)
     min_gain, max_loss : keep criterion (module docstring)
-    max_steps : at most this many effects added
+    max_steps : at most this many effects added (per block of a combined model)
     maxiter : DE iterations of each refit
     exclude : channel names never used as inputs
     max_delay : largest dead time tried (samples)
