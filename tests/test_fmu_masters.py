@@ -34,7 +34,7 @@ def twin(request, tmp_path_factory, shared_data_optional):
     elif request.param == "feed-forward":
         m, val = _virtual(presets.with_feedforward(),
                           lambda tr: identify_mimo(tr, mimo_structure(("x",), ("error",), 2, 1,
-                                                                 same_sample="quadratic"), seed=0,
+                                                                 same_sample="cubic"), seed=0,
                                                    maxiter=30))
     else:
         if shared_data_optional is None:

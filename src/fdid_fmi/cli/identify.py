@@ -76,10 +76,12 @@ def register(sub):
     s.add_argument("--velocity", choices=("backward", "central"), default="backward",
                    help="measured velocity estimate driving friction")
     s.add_argument("--ma-order", type=_int_in(1, 1000, "--ma-order"), default=1, help="moving-average order of that velocity")
-    s.add_argument("--same-sample", choices=("hold", "quadratic"), default=None,
+    s.add_argument("--same-sample", choices=("hold", "cubic", "quadratic"), default=None,
                    help="how the command of the predicted sample is taken from the samples before "
-                        "(hold: a loop without look-ahead; quadratic: feed-forward with one sample of "
-                        "look-ahead); default: identify with both, keep the lower training free-run error")
+                        "(hold: a loop without look-ahead; cubic: feed-forward with one sample of "
+                        "look-ahead, exact for constant jerk; quadratic: the same, exact for constant "
+                        "acceleration); default: identify with hold and cubic, keep the lower training "
+                        "free-run error")
     s.add_argument("--real-hz", action="append", default=None, metavar="LO:HI",
                    help="bounds of one real pole [Hz] (repeat per pole; sets the number of real poles)")
     s.add_argument("--omega-hz", action="append", default=None, metavar="LO:HI",

@@ -256,9 +256,10 @@ def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, r
 
 
 def other_same_sample(recipe: Recipe) -> Recipe:
-    """The recipe with the other causal same-sample prediction (hold <-> quadratic)."""
+    """The recipe with the other kind of causal same-sample prediction: hold for a look-ahead form
+    (quadratic, cubic), quadratic for hold."""
     r = recipe.copy()
-    r.same_sample = "hold" if recipe.same_sample == "quadratic" else "quadratic"
+    r.same_sample = "hold" if recipe.same_sample != "hold" else "quadratic"
     return r
 
 

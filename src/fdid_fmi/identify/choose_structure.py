@@ -6,11 +6,13 @@ a feed-forward loop leaves the current loop in the tracking error (one more real
 axis a second complex pair, a P/PD position loop a friction d.c. gain (the 1/P(s) path). So
 :func:`identify_auto`
 
-1. identifies the rigid-body structure with and without integral action (each with both
-   same-sample predictions, ``hold`` and ``quadratic``) and keeps the family whose free run is
+1. identifies the rigid-body structure with and without integral action, each with every
+   same-sample prediction of ``regressors.CHOSEN_FROM``, and keeps the family whose free run is
    better -- the family with integral action has fewer parameters and wins ties within
-   ``PARSIMONY``;
-2. identifies the larger structures of that family (two real poles, two complex pairs, both);
+   ``PARSIMONY`` -- and the predictions whose best free run is within ``PARSIMONY`` of the best
+   (without feed-forward ``hold`` alone is left; with it the rigid structure cannot tell);
+2. identifies the larger structures of that family (two real poles, two complex pairs, both)
+   with those predictions;
 3. keeps the structure with the fewest parameters whose free-run RMS is within ``PARSIMONY`` of
    the best one (a more complex structure must win by that margin).
 
@@ -39,11 +41,12 @@ from scipy.linalg import LinAlgWarning
 
 from ..errors import InputError
 from .pole_search import identify_mimo
+from .regressors import CHOSEN_FROM
 from .structure import Bounds, default_bounds, mimo_structure, siso_structure
 
 PARSIMONY = 0.05            # a structure with more parameters must lower the free-run RMS by 5 %
 ZETA_TWO_PAIRS = (0.005, 2.0)  # a structural mode is lightly damped: below the default 0.05
-FORMS = ("hold", "quadratic")
+FORMS = CHOSEN_FROM
 
 
 @dataclass(frozen=True)
@@ -213,7 +216,8 @@ def identify_auto(traces, axis="x", same_sample=None, v_tilde=None, method="de",
     ----------
     traces : Trace or list[Trace], training data ranges
     axis : the axis to identify
-    same_sample : ``hold`` / ``quadratic`` to pin the same-sample prediction (default: both tried)
+    same_sample : ``hold`` / ``cubic`` / ``quadratic`` to pin the same-sample prediction
+        (default: ``regressors.CHOSEN_FROM`` tried)
     v_tilde, method, seed, maxiter, velocity, ma_order : as :func:`~.pole_search.identify_mimo`
     workers : processes fitting candidates in parallel (default: ``os.cpu_count()``; 1: in process)
     parsimony : relative free-run margin a structure with more parameters must win by
@@ -231,14 +235,18 @@ def identify_auto(traces, axis="x", same_sample=None, v_tilde=None, method="de",
     workers = max(1, int(workers or os.cpu_count() or 1))
     pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
 
-    def run(cands):
+    def run(cands, forms):
         jobs = [(c, f, traces, axis, opts) for c in cands for f in forms]
         return list(pool.map(fit_candidate, jobs)) if pool is not None else [fit_candidate(j) for j in jobs]
 
     try:
-        results = run([family(True)[0], family(False)[0]])
-        rigid = choose([r for r, _ in results], parsimony)
-        results += run(family(rigid.label == "rigid")[1:])
+        results = run([family(True)[0], family(False)[0]], forms)
+        first = [r for r, _ in results]
+        rigid = choose(first, parsimony)
+        best = min(r.free_run_rms_mm for r in first)
+        kept = [f for f in forms if min(r.free_run_rms_mm for r in first if r.same_sample == f)
+                <= best * (1 + parsimony)]
+        results += run(family(rigid.label == "rigid")[1:], kept)
     finally:
         if pool is not None:
             pool.shutdown()

@@ -20,7 +20,7 @@ from ..model import DriveModel, Port, delayed_input
 from . import regressors as rg
 from .lsfit import LSProblem
 from .search import run_search
-from .regressors import SAME_SAMPLE
+from .regressors import CHOSEN_FROM, SAME_SAMPLE
 from .structure import Bounds, Structure, default_bounds, siso_structure
 
 
@@ -208,7 +208,8 @@ def identify_siso(traces, axis="x", integral_action=True, v_tilde=None, bounds=N
     e = x_r - x; P(s) = (s + p)(s^2 + 2 zeta omega s + omega^2); candidates with d0 < 0 rejected.
     ``integral_action=False`` adds the 1/P(s) friction term for P/PD position loops (EMPS).
     v_tilde (mm/s) is searched with the poles unless given. ``same_sample``: ``hold``,
-    ``quadratic`` or None (chosen from the data), see :class:`~.structure.Structure`.
+    ``quadratic``, ``cubic`` or None (hold or cubic, chosen from the data), see
+    :class:`~.structure.Structure`.
     """
     st = siso_structure(axis, integral_action=integral_action, ma_order=ma_order, friction=friction,
                         velocity=velocity, same_sample=same_sample)
@@ -219,12 +220,12 @@ def identify_siso(traces, axis="x", integral_action=True, v_tilde=None, bounds=N
 
 
 def _choose_same_sample(traces, structure, **kw):
-    """Identify with each same-sample prediction (``regressors.SAME_SAMPLE``) and keep the model
+    """Identify with each same-sample prediction of ``regressors.CHOSEN_FROM`` and keep the model
     with the lower free-run error of its position-type outputs on the training data: whether the
     drive looks one sample ahead (feed-forward) is a property of the drive, seen in its data."""
     t0 = time.perf_counter()
     fits = {}
-    for name in SAME_SAMPLE:
+    for name in CHOSEN_FROM:
         m = identify_mimo(traces, dataclasses.replace(structure, same_sample=name), **kw)
         fits[name] = (next(c["selection_free_run"] for c in m.identification["candidates"] if c["chosen"]), m)
     name = min(fits, key=lambda k: fits[k][0])

@@ -137,7 +137,7 @@ class Structure:
                ``ma_order`` samples (1 = none)
     ma_order : moving-average order for the measured velocity
     same_sample : how the same-sample term of commands and external inputs is predicted from
-               earlier samples (``regressors.SAME_SAMPLE``: ``hold`` or ``quadratic``);
+               earlier samples (``regressors.SAME_SAMPLE``: ``hold``, ``cubic`` or ``quadratic``);
                None: identify with each and keep the lower free-run error on the training data
     """
 
@@ -275,7 +275,7 @@ def mimo_structure(axes=("x",), outputs=("error",), n_real=1, n_complex=1, coupl
         predicts the tool-side position from a fitted tool acceleration)
     dc_gain : dict output kind -> (q, value) for the own-axis command input (Eqn 5.15)
     externals : extra trace channels used as inputs (each with its own numerator)
-    same_sample : ``hold``, ``quadratic`` or None (chosen from the data), see :class:`Structure`
+    same_sample : ``hold``, ``cubic``, ``quadratic`` or None (chosen from the data), see :class:`Structure`
     """
     integrators = integrators or {}
     dc_gain = dc_gain or {}
