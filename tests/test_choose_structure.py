@@ -84,3 +84,22 @@ def test_feedforward_axis_gets_the_current_loop_pole():
     lines = summary(m)
     assert any(line.startswith("structure of axis x: r2c1") for line in lines)
     assert np.isfinite(ch.wall_s)
+
+
+def test_identification_record_round_trip():
+    """The typed record reads back exactly what the pole search wrote (JSON included), and the
+    (output, input) pairs come back as tuples."""
+    from fdid_fmi.identify import identify_siso
+    from fdid_fmi.identify.record import PoleSearchRecord
+    from fdid_fmi.model import DriveModel
+    cfg = presets.deckel_maho_like()
+    one = MachineConfig(axes=[cfg.axis("x")], Ts=cfg.Ts)
+    tr = simulate_machine(one, tj.linear_moves(n_moves=2, axes=("x",), Ts=cfg.Ts, seed=1), seed=1)
+    m = identify_siso(tr, "x", seed=0, maxiter=3, same_sample="hold")
+    back = DriveModel.from_dict(json.loads(json.dumps(m.to_dict())))
+    rec = PoleSearchRecord.from_dict(back.identification)
+    assert json.loads(json.dumps(rec.to_dict())) == json.loads(json.dumps(m.identification))
+    assert ("x_error", "x_cmd") in rec.numerators and rec.structure.same_sample == "hold"
+    assert rec.structure.mask[("x_error", "x_cmd")] == (0, 1, 2)
+    with pytest.raises(InputError, match="combined per-axis"):
+        PoleSearchRecord.from_dict({"blocks": [m.identification]})

@@ -313,13 +313,15 @@ def summary(model, trace=None):
         ident = model.identification
         blocks = ident.get("blocks", [ident])
         for b in blocks:
-            if "structure_choice" in b:
+            if b.get("structure"):
                 from ..identify import StructureChoice
-                lines += StructureChoice.from_dict(b["structure_choice"]).table()
-            if "real_hz" in b:
-                cp = ", ".join(f"{w:.3f} Hz / zeta {z:.4f}" for w, z in b["complex_hz_zeta"])
-                rp = ", ".join(f"{p:.3f} Hz" for p in b["real_hz"])
-                lines.append(f"poles: real [{rp}]  complex [{cp}]  v_tilde {b['v_tilde_mm_s']} mm/s")
+                from ..identify.record import PoleSearchRecord
+                rec = PoleSearchRecord.from_dict(b)
+                if rec.structure_choice:
+                    lines += StructureChoice.from_dict(rec.structure_choice).table()
+                cp = ", ".join(f"{w:.3f} Hz / zeta {z:.4f}" for w, z in rec.complex_hz_zeta)
+                rp = ", ".join(f"{p:.3f} Hz" for p in rec.real_hz)
+                lines.append(f"poles: real [{rp}]  complex [{cp}]  v_tilde {rec.v_tilde_mm_s} mm/s")
             elif "pole_constraints" in b:
                 pc = b["pole_constraints"]
                 lines.append(f"poles: p {pc['p_hz']:.3f} Hz, wn {pc['wn_hz']:.3f} Hz, zeta {pc['zeta']:.3f}"

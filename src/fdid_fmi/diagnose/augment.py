@@ -47,6 +47,7 @@ from scipy.linalg import LinAlgWarning
 
 from ..errors import InputError
 from ..identify.pole_search import identify_mimo
+from ..identify.record import PoleSearchRecord
 from ..identify.structure import Bounds, InputSpec, OutputSpec, Structure, default_bounds
 from ..model import DriveModel, port_name
 from .residuals import delayed, with_channels
@@ -96,44 +97,26 @@ def recipe_from_model(model: DriveModel, reserved=()) -> Recipe:
     added to this block must not take (the combined model needs unique names).
     """
     ident = model.identification or {}
-    st = ident.get("structure")
-    if not st:
+    if not ident.get("structure"):
         what = ("a combined per-axis model: diagnose its blocks (diagnose() splits it)"
                 if ident.get("blocks") else f"method '{model.method or 'unknown'}'")
         raise InputError(f"diagnosis refits the model with the pole search and needs a pole-search or "
                          f"MIMO model (fdid identify --method pole-search or mimo); this model's "
                          f"identification has no 'structure' ({what})", column="identification")
-    ins = [InputSpec(**{k: v for k, v in d.items() if k in ("kind", "axis", "channel", "params", "name")})
-           for d in st["inputs"]]
-    outs = [OutputSpec(**{k: v for k, v in d.items()
-                          if k in ("kind", "axis", "integrators", "predicts", "name")}) for d in st["outputs"]]
-    real = list(ident.get("real_hz", [])) + list(ident.get("locked_real_hz", []))
-    cplx = [tuple(c) for c in ident.get("complex_hz_zeta", [])] + \
-           [tuple(c) for c in ident.get("locked_complex", [])]
+    rec = PoleSearchRecord.from_dict(ident)
+    st = rec.structure
+    real, cplx = rec.all_real_hz, rec.all_complex
     n = len(real) + 2 * len(cplx)
-    masks = {}
-    for key, ls in st.get("mask", {}).items():
-        o, i = key.split("|", 1)
-        masks[(o, i)] = frozenset(n - int(l) for l in ls)
-    def pairs(d):
-        out = {}
-        for key, v in d.items():
-            o, i = key.split("|", 1)
-            out[(o, i)] = tuple(v) if isinstance(v, list) else v
-        return out
-    vt = ident.get("v_tilde_mm_s") or {}
-    fric_axes = [s.axis for s in ins if s.kind == "friction"]
-    for a in fric_axes:
+    vt = dict(rec.v_tilde_mm_s)
+    for a in [s.axis for s in st.inputs if s.kind == "friction"]:
         if a not in vt:
-            p = model.inputs[model.input_index("friction", a)]
-            vt[a] = float(p.params["v_tilde"])
-    diag = ident.get("diagnose", {})
-    return Recipe(inputs=ins, outputs=outs, masks=masks, dc_gain=pairs(st.get("dc_gain", {})),
-                  friction_sign=pairs(st.get("friction_sign", {})), velocity=st.get("velocity", "backward"),
-                  ma_order=int(st.get("ma_order", 1)), same_sample=st.get("same_sample") or "quadratic",
-                  real_hz=real, complex_hz_zeta=cplx,
-                  v_tilde={a: float(v) for a, v in vt.items()},
-                  delays={a: int(d) for a, d in diag.get("delays", {}).items()},
+            vt[a] = float(model.inputs[model.input_index("friction", a)].params["v_tilde"])
+    return Recipe(inputs=st.inputs, outputs=st.outputs,
+                  masks={k: frozenset(n - l for l in ls) for k, ls in st.mask.items()},
+                  dc_gain=dict(st.dc_gain), friction_sign=dict(st.friction_sign), velocity=st.velocity,
+                  ma_order=st.ma_order, same_sample=st.same_sample or "quadratic",
+                  real_hz=real, complex_hz_zeta=cplx, v_tilde=vt,
+                  delays={a: int(d) for a, d in rec.diagnose.get("delays", {}).items()},
                   effects=list(model.effects), reserved=set(reserved))
 
 
@@ -266,10 +249,8 @@ def other_same_sample(recipe: Recipe) -> Recipe:
 def updated_recipe(recipe: Recipe, model: DriveModel) -> Recipe:
     """The recipe with the poles of a fitted model as the new current values (pairs found)."""
     r = recipe.copy()
-    ident = model.identification
-    r.real_hz = list(ident.get("real_hz", [])) + list(ident.get("locked_real_hz", []))
-    r.complex_hz_zeta = [tuple(c) for c in ident.get("complex_hz_zeta", [])] + \
-                        [tuple(c) for c in ident.get("locked_complex", [])]
+    rec = PoleSearchRecord.from_dict(model.identification)
+    r.real_hz, r.complex_hz_zeta = rec.all_real_hz, rec.all_complex
     r.new_pairs = []
     return r
 
@@ -463,10 +444,10 @@ def describe_fitted(model: DriveModel, effect: dict) -> dict:
     """Effect parameters read back from the fitted model (frequency / damping of a mode,
     numerator ratios of friction features to the Coulomb path)."""
     e = dict(effect)
-    ident = model.identification
-    nums = ident.get("numerators", {})
+    rec = PoleSearchRecord.from_dict(model.identification)
+    nums = rec.numerators
     if e["kind"] == "mode":
-        pairs = [tuple(c) for c in ident.get("complex_hz_zeta", [])]
+        pairs = [tuple(c) for c in rec.complex_hz_zeta]
         if pairs:
             f0 = e.get("detected_hz", pairs[-1][0])
             w, z = min(pairs, key=lambda c: abs(np.log(c[0] / f0)))
@@ -477,13 +458,11 @@ def describe_fitted(model: DriveModel, effect: dict) -> dict:
         if ratio is not None:
             e["ratio_to_coulomb"] = ratio
     if e["kind"] == "backlash":
-        key = f"{e['output']}|{e['input']}"
-        b = nums.get(key)
-        a = ident.get("denominator")
-        if b is not None and a is not None:
+        b, a = nums.get((e["output"], e["input"])), rec.denominator
+        if b is not None and a:
             # d.c. offset = -b/2 per direction, of the predicted position: an output fitted before
             # q integrators (Eqn 5.29) has its s^0 term of the position at b[n - q]
-            q = _integrators(ident, e["output"])
+            q = next((o.integrators for o in rec.structure.outputs if o.name == e["output"]), 0)
             e["backlash_mm"] = float(abs(2.0 * b[len(b) - 1 - q] / a[-1]))
     if e["kind"] == "periodic_position":
         amp = _periodic_amplitude(model, e)
@@ -492,25 +471,18 @@ def describe_fitted(model: DriveModel, effect: dict) -> dict:
     return e
 
 
-def _integrators(ident, output):
-    """Integrators appended after the fit of a structure output (0 when not recorded)."""
-    for o in (ident.get("structure") or {}).get("outputs", []):
-        if o.get("name") == output:
-            return int(o.get("integrators") or 0)
-    return 0
-
-
 def _ratio_to_friction(model, axis, name, nums):
+    """Ratio of input ``name``'s numerator to the friction path's, at the friction path's lowest
+    nonzero term (``nums``: (output, input) -> b)."""
     fr = model.input_index("friction", axis)
     if fr is None:
         return None
     fname = model.inputs[fr].name
-    for key, b in nums.items():
-        o, i = key.split("|", 1)
+    for (o, i), b in nums.items():
         if i != fname:
             continue
         bf = np.asarray(b)
-        bs = np.asarray(nums.get(f"{o}|{name}", []))
+        bs = np.asarray(nums.get((o, name), []))
         if bs.size != bf.size:
             continue
         nz = np.flatnonzero(np.abs(bf) > 0)
@@ -526,7 +498,7 @@ def _periodic_amplitude(model, e):
     ins = e.get("inputs", [])
     if len(ins) != 2:
         return None
-    nums = model.identification.get("numerators", {})
+    nums = PoleSearchRecord.from_dict(model.identification).numerators
     rs = _ratio_to_friction(model, e["axis"], ins[0], nums)
     rc = _ratio_to_friction(model, e["axis"], ins[1], nums)
     if rs is None or rc is None:

@@ -41,6 +41,7 @@ from scipy.linalg import LinAlgWarning
 
 from ..errors import InputError
 from .pole_search import identify_mimo
+from .record import PoleSearchRecord
 from .regressors import CHOSEN_FROM
 from .structure import Bounds, default_bounds, mimo_structure, siso_structure
 
@@ -160,13 +161,13 @@ def free_run_rms(model, traces, axis):
     return r if np.isfinite(r) else float("inf")
 
 
-def _on_bound(model, bounds: Bounds):
-    ident = model.identification
+def _on_bound(rec: PoleSearchRecord, bounds: Bounds):
+    """True when a searched pole sits on its search bound (within 0.1 %)."""
     tol = 1e-3
-    for f, (lo, hi) in zip(ident["real_hz"], bounds.real_hz):
+    for f, (lo, hi) in zip(rec.real_hz, bounds.real_hz):
         if f <= lo * (1 + tol) or f >= hi * (1 - tol):
             return True
-    for (w, z), (lo, hi), (zl, zh) in zip(ident["complex_hz_zeta"], bounds.omega_hz, bounds.zeta):
+    for (w, z), (lo, hi), (zl, zh) in zip(rec.complex_hz_zeta, bounds.omega_hz, bounds.zeta):
         if w <= lo * (1 + tol) or w >= hi * (1 - tol) or z <= zl * (1 + tol) or z >= zh * (1 - tol):
             return True
     return False
@@ -187,9 +188,9 @@ def fit_candidate(job):
             model = identify_mimo(traces, st, bounds=bounds, v_tilde=opts["v_tilde"], seed=opts["seed"],
                                   maxiter=opts["maxiter"], method=opts["method"])
         res.free_run_rms_mm = free_run_rms(model, traces, axis)
-        res.real_hz = [float(f) for f in model.identification["real_hz"]]
-        res.complex_hz_zeta = [[float(w), float(z)] for w, z in model.identification["complex_hz_zeta"]]
-        res.on_bound = _on_bound(model, bounds)
+        rec = PoleSearchRecord.from_dict(model.identification)
+        res.real_hz, res.complex_hz_zeta = rec.real_hz, rec.complex_hz_zeta
+        res.on_bound = _on_bound(rec, bounds)
     except InputError as exc:   # e.g. no feasible friction sign in this structure
         res.error = str(exc)
     res.wall_s = time.perf_counter() - t0

@@ -19,8 +19,9 @@ from ..errors import InputError
 from ..model import DriveModel, Port, delayed_input
 from . import regressors as rg
 from .lsfit import LSProblem
-from .search import run_search
+from .record import PoleSearchRecord
 from .regressors import CHOSEN_FROM, SAME_SAMPLE
+from .search import run_search
 from .structure import Bounds, Structure, default_bounds, siso_structure
 
 
@@ -167,24 +168,20 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
     model.poles = rg.poles_from_parameters(list(real) + list(structure.locked_real_hz),
                                            list(cplx) + list(structure.locked_complex))
     model.method = "mimo"
-    model.identification = {
-        "structure": _structure_dict(structure),
-        "real_hz": real, "complex_hz_zeta": [list(c) for c in cplx],
-        "locked_real_hz": list(structure.locked_real_hz),
-        "locked_complex": [list(c) for c in structure.locked_complex],
-        "v_tilde_mm_s": {p.axis: p.params["v_tilde"] for p in model.inputs if p.kind == "friction"},
-        "v_tilde_regressor_mm_s": vt,
-        "friction_refinement": refinement,
-        "denominator": fit.a.tolist(),
-        "numerators": {f"{o}|{i}": b.tolist() for (o, i), b in fit.b.items()},
-        "tracking_zeros_hz_zeta": tracking_zeros(structure, fit),
-        "search": {"method": method, "seed": seed, "nfev": nfev, "objective": fun,
-                   "bounds": {"real_hz": bounds.real_hz, "omega_hz": bounds.omega_hz,
-                              "zeta": bounds.zeta, "v_tilde": bounds.v_tilde}},
-        "minima": [{"objective": f, **_describe(par, x)} for f, x in minima],
-        "candidates": [{"objective": c["objective"], "selection_free_run": c["free_run"],
-                        **_describe(par, c["x"]), "chosen": c is chosen} for c in finished],
-    }
+    model.identification = PoleSearchRecord(
+        structure=structure, real_hz=list(real), complex_hz_zeta=[list(c) for c in cplx],
+        locked_real_hz=list(structure.locked_real_hz), locked_complex=[list(c) for c in structure.locked_complex],
+        v_tilde_mm_s={p.axis: p.params["v_tilde"] for p in model.inputs if p.kind == "friction"},
+        numerators={k: b.tolist() for k, b in fit.b.items()}, denominator=fit.a.tolist(),
+        extra={"v_tilde_regressor_mm_s": vt, "friction_refinement": refinement,
+               "tracking_zeros_hz_zeta": tracking_zeros(structure, fit),
+               "search": {"method": method, "seed": seed, "nfev": nfev, "objective": fun,
+                          "bounds": {"real_hz": bounds.real_hz, "omega_hz": bounds.omega_hz,
+                                     "zeta": bounds.zeta, "v_tilde": bounds.v_tilde}},
+               "minima": [{"objective": f, **_describe(par, x)} for f, x in minima],
+               "candidates": [{"objective": c["objective"], "selection_free_run": c["free_run"],
+                               **_describe(par, c["x"]), "chosen": c is chosen} for c in finished]},
+    ).to_dict()
     model.metrics = {
         "objective_scaled_rms": fit.J,
         "fit_rms": {o.name: float(r) for o, r in zip(structure.outputs, fit.rms)},
@@ -495,12 +492,3 @@ def _out_description(o):
     if o.integrators:
         d += f" (fitted on {o.kind}, {o.integrators} integrator(s) appended)"
     return d
-
-
-def _structure_dict(s):
-    return {"inputs": [vars(i) for i in s.inputs], "outputs": [vars(o) for o in s.outputs],
-            "n_real": s.n_real, "n_complex": s.n_complex,
-            "mask": {f"{k[0]}|{k[1]}": list(v) for k, v in s.mask.items()},
-            "dc_gain": {f"{k[0]}|{k[1]}": list(v) for k, v in s.dc_gain.items()},
-            "friction_sign": {f"{k[0]}|{k[1]}": v for k, v in s.friction_sign.items()},
-            "velocity": s.velocity, "ma_order": s.ma_order, "same_sample": s.same_sample}

@@ -19,6 +19,18 @@ from ..model import delayed_input, port_name
 from .regressors import SAME_SAMPLE
 
 INPUT_SOURCES = ("command", "friction", "external", "feature")
+PAIR_SEP = "|"     # JSON key of an (output name, input name) pair: "x_error|x_cmd"
+
+
+def pair_key(pair):
+    """JSON key of an (output name, input name) pair."""
+    return f"{pair[0]}{PAIR_SEP}{pair[1]}"
+
+
+def split_pair_key(key):
+    """(output name, input name) of a JSON pair key (port names contain no ``|``)."""
+    o, i = key.split(PAIR_SEP, 1)
+    return o, i
 # output kind -> trace role it is measured from (integrators: how many appended to predict it)
 OUTPUT_SOURCES = {
     "error": "cmd-act", "position": "act", "velocity": "vel", "tool_position": "tool",
@@ -157,6 +169,30 @@ class Structure:
     @property
     def order(self):
         return (self.n_real + len(self.locked_real_hz)) + 2 * (self.n_complex + len(self.locked_complex))
+
+    def to_dict(self):
+        """The JSON form (``identification["structure"]``; locked poles are stored beside it)."""
+        return {"inputs": [vars(i) for i in self.inputs], "outputs": [vars(o) for o in self.outputs],
+                "n_real": self.n_real, "n_complex": self.n_complex,
+                "mask": {pair_key(k): list(v) for k, v in self.mask.items()},
+                "dc_gain": {pair_key(k): list(v) for k, v in self.dc_gain.items()},
+                "friction_sign": {pair_key(k): v for k, v in self.friction_sign.items()},
+                "velocity": self.velocity, "ma_order": self.ma_order, "same_sample": self.same_sample}
+
+    @classmethod
+    def from_dict(cls, d, locked_real_hz=(), locked_complex=()):
+        """Inverse of :meth:`to_dict`."""
+        ins = [InputSpec(**{k: v for k, v in x.items() if k in ("kind", "axis", "channel", "params", "name")})
+               for x in d["inputs"]]
+        outs = [OutputSpec(**{k: v for k, v in x.items() if k in ("kind", "axis", "integrators", "predicts",
+                                                                  "name")}) for x in d["outputs"]]
+        return cls(inputs=ins, outputs=outs, n_real=int(d.get("n_real", 1)), n_complex=int(d.get("n_complex", 1)),
+                   locked_real_hz=list(locked_real_hz), locked_complex=[tuple(c) for c in locked_complex],
+                   mask={split_pair_key(k): tuple(int(l) for l in v) for k, v in d.get("mask", {}).items()},
+                   dc_gain={split_pair_key(k): tuple(v) for k, v in d.get("dc_gain", {}).items()},
+                   friction_sign={split_pair_key(k): v for k, v in d.get("friction_sign", {}).items()},
+                   velocity=d.get("velocity", "backward"), ma_order=int(d.get("ma_order", 1)),
+                   same_sample=d.get("same_sample"))
 
     @property
     def axes(self):
