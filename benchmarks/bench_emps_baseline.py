@@ -192,6 +192,7 @@ def main():
     train = read_trace(a.emps / "DATA_EMPS.mat")
     test = read_trace(a.emps / "DATA_EMPS_PULSES.mat")
     quiet = test.slice(0, T_FIRST_PULSE)
+    prov = _provenance()      # before the fits: the checkout the identification code came from
     c0, w0 = time.process_time(), time.perf_counter()
     rows = pole_search_rows(train, quiet, test)
     narx, settings = narx_rows(train, quiet, test)
@@ -202,7 +203,7 @@ def main():
                "pulses_all": "DATA_EMPS_PULSES, whole record (force pulses unknown to every model here)"},
            "rows": rows, "narx_settings": settings, "cpu_s": time.process_time() - c0,
            "wall_s": time.perf_counter() - w0, "python": platform.python_version(),
-           "numpy": np.__version__, **_provenance()}
+           "numpy": np.__version__, **prov}
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text(json.dumps(res, indent=1))
     print("\n| model (trained on DATA_EMPS, qg → qm) | DATA_EMPS whole [µm] | DATA_EMPS t ≥ 0.5 s [µm] "
