@@ -45,8 +45,8 @@ from fdid_fmi.diagnose import DETECTORS, diagnose  # noqa: E402
 from fdid_fmi.diagnose import augment as ag  # noqa: E402
 from fdid_fmi.diagnose.base import Context  # noqa: E402
 from fdid_fmi.diagnose.residuals import residuals  # noqa: E402
-from fdid_fmi.identify import (identify_full_ls, identify_mimo, identify_quasi_static,  # noqa: E402
-                               identify_siso, mimo_structure)
+from fdid_fmi.identify import (identify_full_ls, identify_quasi_static, identify_siso)  # noqa: E402
+from fdid_fmi.identify.choose_structure import choose, fit_structures  # noqa: E402
 from fdid_fmi.metrics import rms  # noqa: E402
 from fdid_fmi.simulate import simulate  # noqa: E402
 from plant2 import scenarios as p2  # noqa: E402
@@ -113,18 +113,24 @@ def identification(name, quick):
     print(f"\n[{name}] axis {ax}, Ts {truth['Ts'] * 1e3:g} ms, {tr.n} training samples", flush=True)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res["methods"]["pole_search"], _ = _fit("pole search (default)", lambda: identify_siso(tr, ax, seed=0),
-                                                vals, ax)
         res["methods"]["full_ls"], _ = _fit("Full LS", lambda: identify_full_ls(tr, ax), vals, ax)
         res["methods"]["quasi_static"], _ = _fit("quasi-static", lambda: identify_quasi_static(tr, axes=[ax]),
                                                  vals, ax)
-        combos = [(nr, nc, ia) for nr in (1, 2) for nc in (1, 2) for ia in (True, False)]
-        if quick:
-            combos = [(2, 1, True), (1, 2, True)]
-        for nr, nc, ia in combos:
-            key = f"r{nr}c{nc}{'' if ia else '-noI'}"
-            st = mimo_structure((ax,), ("error",), nr, nc, integral_action=ia)
-            res["structures"][key], _ = _fit(f"mimo {key}", lambda: identify_mimo(tr, st, seed=0), vals, ax)
+        # the default of `fdid identify` (identify_auto): every candidate structure is fitted
+        # (fit_structures) and the choice rule picks one; the exhaustive search over the same
+        # candidates is their validation RMS
+        t, (results, probes) = timed(lambda: fit_structures(tr, ax, seed=0, workers=2))
+        chosen = choose([r for r, _ in results])
+        res["structure_choice_wall_s"] = t
+        print(f"  structure choice: {t:.0f} s, chosen {chosen.label} {chosen.same_sample}", flush=True)
+        for r, m in results + probes:
+            key = f"{r.label} {r.same_sample}"
+            entry = {"train_free_run_um": r.free_run_rms_mm * 1e3, "parameters": r.parameters,
+                     "on_bound": r.on_bound, "real_hz": r.real_hz, "complex_hz_zeta": r.complex_hz_zeta}
+            entry["val_rms_um"] = _val_rms(m, vals, ax) if m is not None else {}
+            res["structures"][key] = entry
+            if r is chosen:
+                res["methods"]["pole_search"] = dict(entry, chosen=key)
     # ratios to the better baseline, best structure by mean validation RMS
     names = list(res["e_rms_um"])
 
@@ -143,6 +149,8 @@ def identification(name, quick):
     res["ratio_default"] = {k: (v(cands["default"], k) / base[k] if v(cands["default"], k) and base[k] else None)
                             for k in names}
     res["ratio_best"] = {k: (v(ok[best], k) / base[k] if best and base[k] else None) for k in names}
+    res["ratio_default_to_best"] = {k: (v(cands["default"], k) / v(ok[best], k) if best and v(cands["default"], k)
+                                        else None) for k in names}
     return res
 
 
@@ -261,9 +269,9 @@ def _f(x, fmt="{:.3f}"):
 
 def print_tables(res):
     print("\n### Identification on plant2: free-run RMS of the tracking-error prediction [µm]\n")
-    print("| scenario | Ts [ms] | trace | e RMS | pole search (default) | best structure | best | Full LS | "
-          "quasi-static | default / better baseline | best / better baseline |")
-    print("|---|---:|---|---:|---:|---|---:|---:|---:|---:|---:|")
+    print("| scenario | Ts [ms] | trace | e RMS | pole search (default) | chosen | best structure | best | Full LS | "
+          "quasi-static | default / better baseline | best / better baseline | default / best |")
+    print("|---|---:|---|---:|---:|---|---|---:|---:|---:|---:|---:|---:|")
     for r in res["identification"]:
         ps = r["methods"]["pole_search"].get("val_rms_um", {})
         fl = r["methods"]["full_ls"].get("val_rms_um", {})
@@ -271,9 +279,10 @@ def print_tables(res):
         b = r["best_structure"]
         bd = ({"default": r["methods"]["pole_search"], **r["structures"]}.get(b) or {}).get("val_rms_um", {})
         for k in r["e_rms_um"]:
-            print(f"| {r['scenario']} | {r['Ts'] * 1e3:g} | {k} | {r['e_rms_um'][k]:.1f} | {_f(ps.get(k))} | {b} | "
-                  f"{_f(bd.get(k))} | {_f(fl.get(k))} | {_f(qs.get(k))} | {_f(r['ratio_default'].get(k))} | "
-                  f"{_f(r['ratio_best'].get(k))} |")
+            chosen = r["methods"]["pole_search"].get("chosen", "rigid")
+            print(f"| {r['scenario']} | {r['Ts'] * 1e3:g} | {k} | {r['e_rms_um'][k]:.1f} | {_f(ps.get(k))} | {chosen} | "
+                  f"{b} | {_f(bd.get(k))} | {_f(fl.get(k))} | {_f(qs.get(k))} | {_f(r['ratio_default'].get(k))} | "
+                  f"{_f(r['ratio_best'].get(k))} | {_f((r.get('ratio_default_to_best') or {}).get(k))} |")
     if res.get("diagnosis"):
         print("\n### Diagnosis on plant2 (pole-search model; held out: the reversals trace)\n")
         print("| scenario | truth | named (parameters) | held-out RMS before → after [µm] | right? |")

@@ -6,13 +6,13 @@ a feed-forward loop leaves the current loop in the tracking error (one more real
 axis a second complex pair, a P/PD position loop a friction d.c. gain (the 1/P(s) path). So
 :func:`identify_auto`
 
-1. identifies the rigid-body structure with and without integral action, each with every
-   same-sample prediction of ``regressors.CHOSEN_FROM``, and keeps the family whose free run is
-   better -- the family with integral action has fewer parameters and wins ties within
-   ``PARSIMONY`` -- and the predictions whose best free run is within ``PARSIMONY`` of the best
-   (without feed-forward ``hold`` alone is left; with it the rigid structure cannot tell);
-2. identifies the larger structures of that family (two real poles, two complex pairs, both)
-   with those predictions;
+1. chooses the same-sample prediction (``regressors.CHOSEN_FROM``) on one real pole more than the
+   rigid body (``r2c1``): a drive with feed-forward needs that pole (the current loop) before
+   its look-ahead shows; the rigid structure cannot tell the forms apart there (free runs within
+   1 % of each other on the feed-forward virtual drive), r2c1 separates them clearly with and
+   without feed-forward;
+2. identifies every other candidate -- rigid body, two real poles, two complex pairs, both; each
+   with and without integral action -- with that prediction;
 3. keeps the structure with the fewest parameters whose free-run RMS is within ``PARSIMONY`` of
    the best one (a more complex structure must win by that margin).
 
@@ -209,6 +209,37 @@ def choose(scores, parsimony=PARSIMONY):
     return min(good, key=lambda s: (s.parameters, s.free_run_rms_mm))
 
 
+def fit_structures(traces, axis="x", same_sample=None, v_tilde=None, method="de", seed=0, maxiter=None,
+                   velocity="backward", ma_order=1, workers=None):
+    """Steps 1 and 2 of the module docstring: every candidate identified and scored.
+
+    Returns
+    -------
+    (results, probes): lists of (CandidateScore, DriveModel or None); ``results`` share the
+    chosen same-sample prediction, ``probes`` are the r2c1 fits with the other predictions.
+    """
+    traces = [traces] if not isinstance(traces, (list, tuple)) else list(traces)
+    opts = dict(v_tilde=v_tilde, seed=seed, maxiter=maxiter, method=method, velocity=velocity,
+                ma_order=ma_order)
+    forms = [same_sample] if same_sample else list(FORMS)
+    pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
+
+    def run(cands, forms):
+        jobs = [(c, f, traces, axis, opts) for c in cands for f in forms]
+        return list(pool.map(fit_candidate, jobs)) if pool is not None else [fit_candidate(j) for j in jobs]
+
+    probe = family(True)[1]                          # r2c1
+    try:
+        first = run([probe], forms)
+        form = min(first, key=lambda rm: rm[0].free_run_rms_mm)[0].same_sample
+        rest = [c for c in family(True) + family(False) if c != probe]
+        results = [rm for rm in first if rm[0].same_sample == form] + run(rest, [form])
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    return results, [rm for rm in first if rm[0].same_sample != form]
+
+
 def identify_auto(traces, axis="x", same_sample=None, v_tilde=None, method="de", seed=0, maxiter=None,
                   velocity="backward", ma_order=1, workers=None, parsimony=PARSIMONY):
     """Pole search with the structure chosen from the data (see module docstring).
@@ -229,35 +260,18 @@ def identify_auto(traces, axis="x", same_sample=None, v_tilde=None, method="de",
     (:meth:`StructureChoice.to_dict`).
     """
     t0 = time.perf_counter()
-    traces = [traces] if not isinstance(traces, (list, tuple)) else list(traces)
-    opts = dict(v_tilde=v_tilde, seed=seed, maxiter=maxiter, method=method, velocity=velocity,
-                ma_order=ma_order)
-    forms = [same_sample] if same_sample else list(FORMS)
     workers = max(1, int(workers or os.cpu_count() or 1))
-    pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
-
-    def run(cands, forms):
-        jobs = [(c, f, traces, axis, opts) for c in cands for f in forms]
-        return list(pool.map(fit_candidate, jobs)) if pool is not None else [fit_candidate(j) for j in jobs]
-
-    try:
-        results = run([family(True)[0], family(False)[0]], forms)
-        first = [r for r, _ in results]
-        rigid = choose(first, parsimony)
-        best = min(r.free_run_rms_mm for r in first)
-        kept = [f for f in forms if min(r.free_run_rms_mm for r in first if r.same_sample == f)
-                <= best * (1 + parsimony)]
-        results += run(family(rigid.label == "rigid")[1:], kept)
-    finally:
-        if pool is not None:
-            pool.shutdown()
+    results, probes = fit_structures(traces, axis, same_sample, v_tilde, method, seed, maxiter, velocity,
+                                     ma_order, workers)
     best = choose([r for r, _ in results], parsimony)
     best.chosen = True
     model = next(m for r, m in results if r is best)
     model.method = "pole-search"
     choice = StructureChoice(axis=axis, chosen=best.label, same_sample=best.same_sample,
-                             candidates=[r for r, _ in results], parsimony=parsimony, workers=workers,
-                             wall_s=time.perf_counter() - t0)
-    model.identification["structure_choice"] = choice.to_dict()
+                             candidates=[r for r, _ in results + probes], parsimony=parsimony,
+                             workers=workers, wall_s=time.perf_counter() - t0)
+    rec = PoleSearchRecord.from_dict(model.identification)
+    rec.structure_choice = choice.to_dict()
+    model.identification = rec.to_dict()
     model.metrics["wall_time_s"] = choice.wall_s
     return model
