@@ -20,7 +20,7 @@ The score is the free-run RMS (mm) of the predicted minus measured tracking erro
 data: the model driven by the commands alone, which the LS projection does not minimise (it fits
 the one-step equation error). A held-out score (the last 30 % of the training moves, the model
 fitted on the rest) was tried first and dropped: on the feed-forward virtual axis it ranked the
-structures against their validation on a circle and a diamond (it chose two complex pairs, 1.2-1.4x
+structures against their validation on a circle and a diamond (it chose two complex pairs, 1.16-1.25x
 the validation error of the structure the free run chooses), because the few moves held out
 say less about a structure than all of them run freely; with at most 18 parameters against
 thousands of samples the free run is not fitting noise. The candidates run in parallel
