@@ -47,7 +47,6 @@ from .structure import Bounds, default_bounds, mimo_structure, siso_structure
 
 PARSIMONY = 0.05            # a structure with more parameters must lower the free-run RMS by 5 %
 ZETA_TWO_PAIRS = (0.005, 2.0)  # a structural mode is lightly damped: below the default 0.05
-FORMS = CHOSEN_FROM
 
 
 @dataclass(frozen=True)
@@ -210,8 +209,9 @@ def choose(scores, parsimony=PARSIMONY):
 
 
 def fit_structures(traces, axis="x", same_sample=None, v_tilde=None, method="de", seed=0, maxiter=None,
-                   velocity="backward", ma_order=1, workers=None):
-    """Steps 1 and 2 of the module docstring: every candidate identified and scored.
+                   velocity="backward", ma_order=1, workers=1):
+    """Steps 1 and 2 of the module docstring: every candidate identified and scored
+    (``workers`` > 1: in that many processes).
 
     Returns
     -------
@@ -221,7 +221,7 @@ def fit_structures(traces, axis="x", same_sample=None, v_tilde=None, method="de"
     traces = [traces] if not isinstance(traces, (list, tuple)) else list(traces)
     opts = dict(v_tilde=v_tilde, seed=seed, maxiter=maxiter, method=method, velocity=velocity,
                 ma_order=ma_order)
-    forms = [same_sample] if same_sample else list(FORMS)
+    forms = [same_sample] if same_sample else list(CHOSEN_FROM)
     pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
 
     def run(cands, forms):
