@@ -1,4 +1,4 @@
-"""Calibrate the diagnosis thresholds on clean virtual-drive data.
+"""Calibrate the diagnosis thresholds on clean virtual-drive data (and check them on a second plant).
 
 Runs every detector once (no augmentation) on clean scenarios (gentle moves, fast moves, a softer
 velocity loop, two uncoupled axes, a P loop without integral action) for several seeds and prints each detector's statistic with
@@ -6,34 +6,141 @@ its threshold. The thresholds in ``fdid_fmi.diagnose.*`` were set above the larg
 with margin; a statistic at or above its threshold only means the effect is *tried* -- the
 held-out criterion decides whether it is kept.
 
-    .venv/bin/python examples/diagnose_calibrate.py
+    .venv/bin/python examples/diagnose_calibrate.py                 # virtual drive, 15 clean runs (~2 min)
+    .venv/bin/python examples/diagnose_calibrate.py --effects       # + the 7 one-effect virtual runs
+    .venv/bin/python examples/diagnose_calibrate.py --effects --plant2 [--json out.json]
+                                                                    # + tests/plant2: 9 clean, 8 one-effect
+
+With ``--plant2`` a table gives, per detector, the largest clean value on each plant, the threshold
+1.2 x that value (the rule of ``diagnose/base.py``) set on one plant and applied to the other
+(false alarms on clean runs, hits on the runs with that effect), in both directions. The second
+plant (``tests/plant2``: LuGre friction, its own loop and integrator) shares no code with
+``fdid_fmi.virtual``; it is in the source tree, not the installed package.
 """
+import argparse
+import json
+import os
+import sys
 import warnings
+from pathlib import Path
 
-import numpy as np
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
 
-from fdid_fmi.diagnose import DETECTORS
-from fdid_fmi.diagnose import augment as ag
-from fdid_fmi.diagnose.base import Context
-from fdid_fmi.diagnose.residuals import residuals
-from fdid_fmi.diagnose.scenarios import INTEGRAL_ACTION, scenario
-from fdid_fmi.identify import identify_siso
+import numpy as np  # noqa: E402
 
-warnings.simplefilter("ignore")
-rows = {}
-for name in ("clean", "clean_fast", "clean_soft", "clean_xy", "clean_p"):
-    for seeds in ((1, 2), (3, 4), (5, 6)):
-        tr, _ = scenario(name, seeds=seeds)
-        m = identify_siso(tr, axis="x", maxiter=30, integral_action=INTEGRAL_ACTION.get(name, True))
-        ctx = Context(model=m, recipe=ag.recipe_from_model(m), train=ag.model_velocity_traces(m, [tr]),
-                      res=[residuals(m, tr)], settings={"maxiter": 25})
-        for fam, mod in DETECTORS.items():
-            for c in mod.detect(ctx):
-                rows.setdefault((c.kind, c.threshold), []).append((name, seeds[0], c.statistic))
-                print(f"{name:10s} seed {seeds[0]}  {c.kind:20s} {c.statistic:8.3f}  (threshold {c.threshold:g})",
-                      flush=True)
-print("\nlargest clean statistic per detector:")
-for (kind, thr), vals in rows.items():
-    worst = max(vals, key=lambda v: v[2])
-    print(f"  {kind:20s} max {worst[2]:8.3f} ({worst[0]}, seed {worst[1]})   threshold {thr:g}   "
-          f"n = {len(vals)}")
+from fdid_fmi.diagnose import DETECTORS  # noqa: E402
+from fdid_fmi.diagnose import augment as ag  # noqa: E402
+from fdid_fmi.diagnose.base import Context  # noqa: E402
+from fdid_fmi.diagnose.residuals import residuals  # noqa: E402
+from fdid_fmi.diagnose.scenarios import INTEGRAL_ACTION, scenario  # noqa: E402
+from fdid_fmi.identify import identify_siso  # noqa: E402
+
+MARGIN = 1.2
+VIRTUAL_CLEAN = ("clean", "clean_fast", "clean_soft", "clean_xy", "clean_p")
+VIRTUAL_EFFECTS = {"stribeck": "stribeck", "backlash": "backlash", "periodic": "periodic_position",
+                   "delay": "delay", "mode": "mode", "coupling": "coupling", "asymmetric": "asymmetric_friction"}
+
+
+def statistics(m, tr):
+    """{kind: (largest statistic, threshold)} of every detector on model m and trace tr."""
+    ctx = Context(model=m, recipe=ag.recipe_from_model(m), train=ag.model_velocity_traces(m, [tr]),
+                  res=[residuals(m, tr)], settings={"maxiter": 25})
+    out = {}
+    for mod in DETECTORS.values():
+        for c in mod.detect(ctx):
+            s = float(c.statistic) if np.isfinite(c.statistic) else float("nan")
+            if c.kind not in out or s > out[c.kind][0]:
+                out[c.kind] = (s, float(c.threshold))
+    return out
+
+
+def virtual_run(name, seeds, expected):
+    tr, _ = scenario(name, seeds=seeds)
+    m = identify_siso(tr, axis="x", maxiter=30, integral_action=INTEGRAL_ACTION.get(name, True))
+    return {"plant": "virtual", "scenario": name, "seed": seeds[0], "expected": expected, "stats": statistics(m, tr)}
+
+
+def plant2_run(p2, name, seed):
+    tr = p2.scenario(name, seed=seed)[0][0]
+    m = identify_siso(tr, p2.SCENARIOS[name][1], maxiter=30, seed=0)
+    return {"plant": "plant2", "scenario": name, "seed": seed, "expected": p2.SCENARIOS[name][2],
+            "stats": statistics(m, tr)}
+
+
+def show(r):
+    for kind, (s, thr) in r["stats"].items():
+        print(f"{r['plant']:7s} {r['scenario']:16s} seed {r['seed']}  {kind:20s} {s:8.3f}  (threshold {thr:g})"
+              + ("" if r["expected"] is None else f"  [effect: {r['expected']}]"), flush=True)
+
+
+def transfer_table(runs):
+    kinds = sorted({k for r in runs for k in r["stats"]})
+    print(f"\nthreshold = {MARGIN} x largest clean statistic of the calibration plant\n")
+    print("| detector | shipped | max clean virtual | max clean plant2 | cal. on | threshold | measured on | "
+          "false alarms (clean) | hits (effect runs: statistic) |")
+    print("|---|---:|---:|---:|---|---:|---|---|---|")
+    for kind in kinds:
+        shipped = next(r["stats"][kind][1] for r in runs if kind in r["stats"])
+        mx = {}
+        for plant in ("virtual", "plant2"):
+            v = [r["stats"][kind][0] for r in runs if r["plant"] == plant and r["expected"] is None
+                 and kind in r["stats"] and np.isfinite(r["stats"][kind][0])]
+            mx[plant] = max(v) if v else None
+        for cal, meas in (("virtual", "plant2"), ("plant2", "virtual")):
+            if mx[cal] is None:
+                continue
+            t = MARGIN * mx[cal]
+            clean = [r for r in runs if r["plant"] == meas and r["expected"] is None and kind in r["stats"]]
+            fa = [f"{r['scenario']}/{r['seed']}" for r in clean if r["stats"][kind][0] >= t]
+            eff = [r for r in runs if r["plant"] == meas and r["expected"] == kind and kind in r["stats"]]
+            hits = ", ".join(f"{r['scenario']}: {r['stats'][kind][0]:.3g}" + (" HIT" if r["stats"][kind][0] >= t else "")
+                             for r in eff) or "—"
+            f = lambda x: "—" if x is None else f"{x:.3g}"  # noqa: E731
+            print(f"| {kind} | {shipped:g} | {f(mx['virtual'])} | {f(mx['plant2'])} | {cal} | {t:.3g} | {meas} | "
+                  f"{len(fa)}/{len(clean)} {' '.join(fa)} | {hits} |")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--effects", action="store_true", help="also the one-effect virtual scenarios")
+    ap.add_argument("--plant2", action="store_true", help="also tests/plant2 (clean seeds 0-2, effects seed 0)")
+    ap.add_argument("--json", default="", help="write every run's statistics to this file")
+    args = ap.parse_args()
+    warnings.simplefilter("ignore")
+    runs = []
+    for name in VIRTUAL_CLEAN:
+        for seeds in ((1, 2), (3, 4), (5, 6)):
+            runs.append(virtual_run(name, seeds, None))
+            show(runs[-1])
+    if args.effects:
+        for name, kind in VIRTUAL_EFFECTS.items():
+            runs.append(virtual_run(name, (1, 2), kind))
+            show(runs[-1])
+    if args.plant2:
+        sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+        from plant2 import scenarios as p2
+        for name in p2.CLEAN:
+            for seed in (0, 1, 2):
+                runs.append(plant2_run(p2, name, seed))
+                show(runs[-1])
+        for name, spec in p2.SCENARIOS.items():
+            if spec[2] is not None:
+                runs.append(plant2_run(p2, name, 0))
+                show(runs[-1])
+    print("\nlargest clean statistic per detector (virtual drive):")
+    for kind in sorted({k for r in runs for k in r["stats"]}):
+        vals = [(r["stats"][kind][0], r["scenario"], r["seed"]) for r in runs
+                if r["plant"] == "virtual" and r["expected"] is None and kind in r["stats"]]
+        if vals:
+            worst = max(vals)
+            thr = next(r["stats"][kind][1] for r in runs if kind in r["stats"])
+            print(f"  {kind:20s} max {worst[0]:8.3f} ({worst[1]}, seed {worst[2]})   threshold {thr:g}   n = {len(vals)}")
+    if args.plant2:
+        transfer_table(runs)
+    if args.json:
+        Path(args.json).write_text(json.dumps(runs, indent=1))
+
+
+if __name__ == "__main__":
+    main()
