@@ -14,10 +14,8 @@ Writes benchmarks/results/bench_versions.json and prints a table.
 import argparse
 import json
 import os
-import resource
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 OUT = Path(__file__).resolve().parent / "results" / "bench_versions.json"

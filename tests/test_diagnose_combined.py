@@ -22,7 +22,6 @@ from fdid_fmi.diagnose import diagnose
 from fdid_fmi.diagnose.loop import split_blocks
 from fdid_fmi.diagnose.residuals import residuals, with_channels
 from fdid_fmi.diagnose.scenarios import scenario
-from fdid_fmi.errors import InputError
 from fdid_fmi.model import DriveModel, load_model
 
 

@@ -11,7 +11,7 @@ from fdid_fmi.identify.pole_search import assemble
 from fdid_fmi.identify.structure import mimo_structure, siso_structure
 from fdid_fmi.model import DriveModel, load_model
 from fdid_fmi.simulate import simulate
-from sim_oracle import STICK, oracle_simulate, solve_friction
+from sim_oracle import STICK, solve_friction
 
 TS = 1e-3
 

@@ -9,7 +9,6 @@ effects diagnosis added, wall time).
 from __future__ import annotations
 
 import json
-from dataclasses import asdict
 from pathlib import Path
 
 from ..outputs import atomic_write
