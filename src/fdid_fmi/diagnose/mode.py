@@ -15,9 +15,13 @@ frequencies, parabola-refined. The augmentation searches one more complex pole p
 frequency and damping are reported. A dead time also leaves a command-coherent residual: the two
 candidates are both refitted and the better one on training data is tried first (loop.py).
 
-Threshold ``COHERENT_FRACTION`` (calibration: ``examples/diagnose_calibrate.py``, 15 clean
-virtual-drive runs): clean runs up to 0.16 (softer velocity loop), mostly below 0.03; a 54 Hz
-mode gives about 0.4 (so does a dead time, see above).
+Threshold ``COHERENT_FRACTION`` (calibration: ``examples/diagnose_calibrate.py --effects
+--plant2``, 15 clean virtual-drive runs, causal models): clean runs up to 0.225 (softer velocity
+loop, seed 3; it passed the earlier 0.2, set on non-causal models where the largest was 0.16),
+12 of 15 below 0.07; 1.2 x 0.225 = 0.27. The 54 Hz virtual mode gives 0.39. On the second plant
+(tests/plant2) the 52 Hz mode gives 0.34 and the 38 Hz tool-side mode 0.29 (both tried), but one
+of its 9 clean runs (clean_rigid, seed 0) gives 0.42: not separable there; the held-out criterion
+decides. A dead time also leaves a command-coherent residual (plant2 delay: 0.28).
 """
 from __future__ import annotations
 
@@ -31,7 +35,7 @@ from .base import Candidate
 F_LO = 8.0
 MEDIAN_HZ = 15.0
 MIN_COHERENCE = 0.5
-COHERENT_FRACTION = 0.2
+COHERENT_FRACTION = 0.27
 
 
 def transfer_to_residual(r, cmd, Ts, nperseg=None):
