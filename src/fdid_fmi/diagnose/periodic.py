@@ -12,7 +12,10 @@ with sin/cos(2 pi x / lambda) inputs and the poles fixed, scanned over +-12 % of
 steps with a parabolic refinement (the phase coherence over the whole record makes this sharp).
 
 Threshold ``PEAK_RATIO`` (calibration: ``examples/diagnose_calibrate.py``, 15 clean virtual-drive
-runs): clean runs up to 6.4; a 40 N force of 5 mm period gives about 140.
+runs): clean runs up to 6.4; a 40 N force of 5 mm period gives about 140. Recalibrated with the
+causal models (``examples/diagnose_calibrate.py --effects --plant2``): virtual clean up to 6.30
+(1.2 x = 7.6), virtual periodic 140; second plant (tests/plant2) clean up to 6.74 (9 runs, none
+above 15), its 40 N / 5 mm force 208: 15 separates both plants either way.
 """
 from __future__ import annotations
 
