@@ -7,12 +7,14 @@ detector's docstring): each threshold is set above the largest value seen on cle
 margin, so that a clean model passes no gate. A gate only decides which effects are *tried*: the
 held-out criterion of :mod:`.loop` decides what is kept.
 
-Transfer (issue 10; ``examples/diagnose_calibrate.py --effects --plant2``, causal models): set as
-1.2 x the largest clean virtual value, the periodic, coupling and asymmetric-friction gates keep
-the second plant's (tests/plant2) 9 clean runs below them and pass its effect runs; the mode gate
-passes both plant2 modes but also one plant2 clean run; the Stribeck gate does not transfer
-(plant2's LuGre friction puts every clean run above it) and the dead-time gate separates neither
-plant (figures in each detector's docstring).
+Transfer (issue 10; ``examples/diagnose_calibrate.py --effects --plant2``, causal models): the
+periodic (15), coupling (0.15) and asymmetric-friction (4) gates keep the second plant's
+(tests/plant2) 9 clean runs below them and pass its periodic and coupling runs (it has no
+asymmetric run); the margin matters for coupling: 1.2 x the largest clean virtual value (0.0012)
+would flag 8 of plant2's 9 clean runs (up to 0.018). The mode gate (0.27) passes both plant2
+modes but also one plant2 clean run; the Stribeck gate does not transfer (plant2's LuGre friction
+puts every clean run above it) and the dead-time gate separates neither plant (figures in each
+detector's docstring).
 """
 from __future__ import annotations
 
