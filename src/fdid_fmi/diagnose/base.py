@@ -10,7 +10,7 @@ held-out criterion of :mod:`.loop` decides what is kept.
 Transfer (issue 10; ``examples/diagnose_calibrate.py --effects --plant2``, causal models): the
 periodic (15), coupling (0.15) and asymmetric-friction (4) gates keep the second plant's
 (tests/plant2) 9 clean runs below them and pass its periodic and coupling runs (it has no
-asymmetric run); the margin matters for coupling: 1.2 x the largest clean virtual value (0.0012)
+asymmetric run); the margin matters for coupling: 1.2 x the largest clean virtual value (0.00098)
 would flag 8 of plant2's 9 clean runs (up to 0.018). The mode gate (0.27) passes both plant2
 modes but also one plant2 clean run; the Stribeck gate does not transfer (plant2's LuGre friction
 puts every clean run above it) and the dead-time gate separates neither plant (figures in each
