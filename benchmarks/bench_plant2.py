@@ -4,11 +4,12 @@ The plant (``tests/plant2``: LuGre friction, drive-clock velocity loop, continuo
 fixed-step RK4 with an exact bristle update, jerk-filter paths) shares no code with
 ``fdid_fmi.virtual``. On every scenario of ``plant2.scenarios``:
 
-1. identification with the public API -- ``identify_siso`` (default structure), ``identify_mimo``
-   with the candidate structures n_real in {1, 2}, n_complex in {1, 2}, integral action on/off,
-   Full LS and quasi-static -- each simulated (``fdid_fmi.simulate.simulate``) on the three
-   validation traces (circle, diamond, reversals): free-run RMS of the predicted minus measured
-   tracking error, and its ratio to the better of Full LS / quasi-static;
+1. identification with the public API -- every candidate of the automatic structure choice
+   (``choose_structure.fit_structures``; the one ``choose`` picks is the default of ``fdid
+   identify``), Full LS and quasi-static -- each simulated (``fdid_fmi.simulate.simulate``) on the
+   three validation traces (circle, diamond, reversals): free-run RMS of the predicted minus
+   measured tracking error, its ratio to the better of Full LS / quasi-static, and the default's
+   ratio to the best candidate (the exhaustive search);
 2. ``fdid_fmi.diagnose.diagnose`` (pole-search model of the training trace, held-out: the
    reversals trace): which effect is named against the truth;
 3. threshold transfer in both directions: every detector's statistic (as a multiple of its
@@ -103,7 +104,7 @@ def _fit(label, fn, vals, axis):
     return {"wall_s": t, "val_rms_um": r}, m
 
 
-def identification(name, quick):
+def identification(name):
     train, vals, truth = p2.scenario(name)
     ax = truth["axis"]
     tr = train[0]
@@ -322,7 +323,7 @@ def print_tables(res):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--quick", action="store_true", help="two candidate structures, fewer calibration seeds")
+    ap.add_argument("--quick", action="store_true", help="fewer calibration seeds")
     ap.add_argument("--scenarios", default="", help="comma-separated subset of plant2 scenarios")
     ap.add_argument("--skip-identification", action="store_true")
     ap.add_argument("--skip-diagnose", action="store_true")
@@ -355,7 +356,7 @@ def main():
         path.write_text(json.dumps(res, indent=1, default=float))
 
     for name in ([] if args.skip_identification else names):
-        res["identification"].append(identification(name, args.quick))
+        res["identification"].append(identification(name))
         save()
     if not args.skip_diagnose:
         for name in names:

@@ -80,7 +80,7 @@ def register(sub):
                    help="how the command of the predicted sample is taken from the samples before "
                         "(hold: a loop without look-ahead; cubic: feed-forward with one sample of "
                         "look-ahead, exact for constant jerk; quadratic: the same, exact for constant "
-                        "acceleration); default: identify with hold and cubic, keep the lower training "
+                        "acceleration); default: identify with all three, keep the lowest training "
                         "free-run error")
     s.add_argument("--real-hz", action="append", default=None, metavar="LO:HI",
                    help="bounds of one real pole [Hz] (repeat per pole; sets the number of real poles)")
@@ -247,7 +247,7 @@ PINNING = ("n_real", "n_complex", "real_hz", "omega_hz", "zeta", "v_tilde_range"
 
 def structure_is_auto(args):
     """True when the pole search chooses the structure (no flag pins it)."""
-    if args.method != "pole-search" or getattr(args, "structure", None) == "rigid":
+    if args.method != "pole-search" or args.structure == "rigid":
         return False
     pinned = [k for k in PINNING if getattr(args, k, None)] + \
         [k for k in ("no_integral_action", "no_friction") if getattr(args, k, False)]
@@ -275,7 +275,7 @@ def identify_from_args(trace, args, progress=True):
         models = [idf.identify_auto(pieces, ax, same_sample=args.same_sample, v_tilde=args.v_tilde,
                                     method=args.search, seed=args.seed, maxiter=args.maxiter,
                                     velocity=args.velocity, ma_order=args.ma_order,
-                                    workers=getattr(args, "jobs", None)) for ax in axes]
+                                    workers=args.jobs) for ax in axes]
         return models[0] if len(models) == 1 else DriveModel.combine(models, method="pole-search")
     n_real, n_complex = _orders(args)
     bounds = bounds_from_args(args, trace.Ts, n_real, n_complex)

@@ -40,6 +40,7 @@ import numpy as np
 from scipy.linalg import LinAlgWarning
 
 from ..errors import InputError
+from ..metrics import rms
 from .pole_search import identify_mimo
 from .record import PoleSearchRecord
 from .regressors import CHOSEN_FROM
@@ -155,8 +156,7 @@ def parameter_count(structure):
 def free_run_rms(model, traces, axis):
     """Free-run RMS (mm) of the predicted minus measured tracking error over ``traces``."""
     from ..simulate import simulate
-    d = np.concatenate([simulate(model, tr).axes[axis]["error"] - tr.error(axis) for tr in traces])
-    r = float(np.sqrt(np.mean(d ** 2)))
+    r = rms(np.concatenate([simulate(model, tr).axes[axis]["error"] - tr.error(axis) for tr in traces]))
     return r if np.isfinite(r) else float("inf")
 
 
@@ -248,8 +248,8 @@ def identify_auto(traces, axis="x", same_sample=None, v_tilde=None, method="de",
     ----------
     traces : Trace or list[Trace], training data ranges
     axis : the axis to identify
-    same_sample : ``hold`` / ``cubic`` / ``quadratic`` to pin the same-sample prediction
-        (default: ``regressors.CHOSEN_FROM`` tried)
+    same_sample : ``hold`` / ``quadratic`` / ``cubic`` to pin the same-sample prediction
+        (default: every form of ``regressors.CHOSEN_FROM`` tried on r2c1)
     v_tilde, method, seed, maxiter, velocity, ma_order : as :func:`~.pole_search.identify_mimo`
     workers : processes fitting candidates in parallel (default: ``os.cpu_count()``; 1: in process)
     parsimony : relative free-run margin a structure with more parameters must win by

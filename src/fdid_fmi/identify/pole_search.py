@@ -205,8 +205,8 @@ def identify_siso(traces, axis="x", integral_action=True, v_tilde=None, bounds=N
     e = x_r - x; P(s) = (s + p)(s^2 + 2 zeta omega s + omega^2); candidates with d0 < 0 rejected.
     ``integral_action=False`` adds the 1/P(s) friction term for P/PD position loops (EMPS).
     v_tilde (mm/s) is searched with the poles unless given. ``same_sample``: ``hold``,
-    ``quadratic``, ``cubic`` or None (hold or cubic, chosen from the data), see
-    :class:`~.structure.Structure`.
+    ``quadratic``, ``cubic`` or None (one of ``regressors.CHOSEN_FROM``, chosen from the data),
+    see :class:`~.structure.Structure`.
     """
     st = siso_structure(axis, integral_action=integral_action, ma_order=ma_order, friction=friction,
                         velocity=velocity, same_sample=same_sample)

@@ -19,6 +19,11 @@ from ..model import delayed_input, port_name
 from .regressors import SAME_SAMPLE
 
 INPUT_SOURCES = ("command", "friction", "external", "feature")
+# output kind -> trace role it is measured from (integrators: how many appended to predict it)
+OUTPUT_SOURCES = {
+    "error": "cmd-act", "position": "act", "velocity": "vel", "tool_position": "tool",
+    "tool_error": "cmd-tool", "acceleration": "acc",
+}
 PAIR_SEP = "|"     # JSON key of an (output name, input name) pair: "x_error|x_cmd"
 
 
@@ -31,11 +36,6 @@ def split_pair_key(key):
     """(output name, input name) of a JSON pair key (port names contain no ``|``)."""
     o, i = key.split(PAIR_SEP, 1)
     return o, i
-# output kind -> trace role it is measured from (integrators: how many appended to predict it)
-OUTPUT_SOURCES = {
-    "error": "cmd-act", "position": "act", "velocity": "vel", "tool_position": "tool",
-    "tool_error": "cmd-tool", "acceleration": "acc",
-}
 
 
 @dataclass
