@@ -7,10 +7,12 @@ doubles: the C core is checked against an independent reading of the semantics i
 ``fdid_fmi/simulate.py``'s docstring.
 """
 import itertools
+import math
 
 import numpy as np
 
 from fdid_fmi.errors import InputError
+from fdid_fmi.fmu.layout import build_layout
 from fdid_fmi.model import DriveModel
 from fdid_fmi.simulate import SimResult, run_up
 from fdid_fmi.trace import Trace
@@ -89,6 +91,8 @@ class _Plan:
             else:
                 self.vsrc.append((self.pos[a], True))
         self.branches = list(itertools.product((STICK, 0, 1, -1), repeat=len(self.fric)))
+        lay = build_layout(model)
+        self.stick = lay.stick
 
 
 def _sat(x):
@@ -101,14 +105,16 @@ def feature_value(params, v_prev, x_cmd, x_prev):
     if f in ("sin_position", "cos_position"):
         x = x_cmd if params.get("source", "command") == "command" else x_prev
         arg = 2.0 * np.pi * x / params["period_mm"]
-        return float(np.sin(arg) if f == "sin_position" else np.cos(arg))
+        # libm, like the C core (numpy's own exp/sin/cos may differ in the last bit)
+        return math.sin(arg) if f == "sin_position" else math.cos(arg)
     s = _sat(v_prev / params["v_tilde"])
     if f == "sat":
         return s
     if f == "abs_sat":
         return abs(s)
     if f == "stribeck":
-        return s * float(np.exp(-(v_prev / params["v_s"]) ** 2))
+        q = v_prev / params["v_s"]
+        return s * math.exp(-(q * q))
     raise InputError(f"unknown feature function '{f}'")
 
 
@@ -128,25 +134,26 @@ def solve_friction(alpha, beta, level, vt, branches):
     Returns
     -------
     d : (m,) friction input values
+    stuck : int, the inputs held at rest (bit i); 0 when any input is in its linear band
     """
     m = len(alpha)
     if m == 1:  # closed form, the common case
         L, v, a, b = float(level[0]), float(vt[0]), float(alpha[0]), float(beta[0][0])
         if L == 0.0:
-            return np.zeros(1)
+            return np.zeros(1), 0
         if b < 0.0:
             d = -a / b
             if abs(d) <= L:
-                return np.array([d])
+                return np.array([d]), 1
         den = v - L * b
         if den > 0:
             d = L * a / den
             if abs(d) <= L:
-                return np.array([d])
+                return np.array([d]), 0
         for s in (1.0, -1.0):
             if s * (a + b * s * L) >= v * (1 - _TOL):
-                return np.array([s * L])
-        return np.array([L * _sat(a / v)])
+                return np.array([s * L]), 0
+        return np.array([L * _sat(a / v)]), 0
     # plain floats: the same operations, in the same order, as the C core
     al = [float(x) for x in alpha]
     be = [[float(x) for x in row] for row in beta]
@@ -192,8 +199,10 @@ def solve_friction(alpha, beta, level, vt, branches):
                 ok = False
                 break
         if ok:
-            return np.array(d)
-    return np.array([lv[i] * _sat(al[i] / vv[i]) for i in range(m)])
+            if any(br[i] == 0 and lv[i] != 0.0 for i in range(m)):
+                return np.array(d), 0
+            return np.array(d), sum(1 << i for i in range(m) if br[i] == STICK)
+    return np.array([lv[i] * _sat(al[i] / vv[i]) for i in range(m)]), 0
 
 
 def oracle_simulate(model, trace_or_commands, Ts=None, start_velocity=None, params=None):
@@ -266,7 +275,7 @@ def _run(plan, cmds, exts, t, v0):
             alpha = np.empty(nf)
             for j, (o, diff) in enumerate(plan.vsrc):
                 alpha[j] = (y[o] - x_prev[ins[plan.fric[j]].axis]) / Ts if diff else y[o]
-            d = solve_friction(alpha, beta, plan.level, plan.vt, plan.branches)
+            d, stuck = solve_friction(alpha, beta, plan.level, plan.vt, plan.branches)
             for j, i in enumerate(plan.fric):
                 u[i] = d[j]
             y = y + _mv(D[:, plan.fric], d)
@@ -276,7 +285,11 @@ def _run(plan, cmds, exts, t, v0):
             V[a][k] = v_prev[a]
         Y[k] = y
         U[k] = u
-        xi = _mv(A, xi) + _mv(B, u)
+        xn = _mv(A, xi) + _mv(B, u)
+        slot = plan.stick.slot[stuck] if nf and stuck else -1
+        if slot >= 0:     # held at rest: drop the stuck dynamics' Jordan block at z = -1
+            xn = _mv(plan.stick.E1[slot], xn) - _mv(plan.stick.E2[slot], xi)
+        xi = xn
     return SimResult(t=np.asarray(t), y=Y, u=U, axes=_axis_view(plan, Y, cmds, V),
                      output_names=[p.name for p in m.outputs])
 

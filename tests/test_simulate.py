@@ -46,9 +46,10 @@ def test_friction_solve_is_exact_for_one_input():
     for _ in range(500):
         alpha, beta = rng.normal(0, 50), -abs(rng.normal(0, 50))      # sticking and sliding cases
         L, vt = rng.uniform(0.1, 2), rng.uniform(0.01, 1)
-        d = solve_friction(np.array([alpha]), np.array([[beta]]), [L], [vt], [(STICK,), (0,), (1,), (-1,)])
+        d, held = solve_friction(np.array([alpha]), np.array([[beta]]), [L], [vt], [(STICK,), (0,), (1,), (-1,)])
         ok, stuck = _karnopp_consistent(np.array([alpha]), np.array([[beta]]), d, np.array([L]), np.array([vt]))
         assert ok and abs(d[0]) <= L + 1e-12
+        assert held == int(bool(stuck[0]))        # the set the stuck-axis maps are chosen by
         # it sticks exactly when the friction can hold the axis
         assert bool(stuck[0]) == (abs(alpha / beta) <= L)
         n_stuck += bool(stuck[0])
@@ -62,7 +63,7 @@ def test_friction_solve_two_coupled_inputs():
         alpha = rng.normal(0, 3, 2)
         beta = -np.diag(np.abs(rng.normal(0, 30, 2))) + rng.normal(0, 2, (2, 2)) * (1 - np.eye(2))
         L, vt = rng.uniform(0.1, 2, 2), rng.uniform(0.05, 1, 2)
-        d = solve_friction(alpha, beta, L, vt, branches)
+        d, _ = solve_friction(alpha, beta, L, vt, branches)
         assert _karnopp_consistent(alpha, beta, d, L, vt)[0]
 
 

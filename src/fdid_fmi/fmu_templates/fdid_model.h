@@ -15,7 +15,10 @@
  *               d = L sat(v / v_tilde) solved exactly with stiction (v = alpha + beta d is
  *               affine in d: branches stick (v = 0, |d| <= L) / linear / +1 / -1 per friction
  *               input, in that order, the first consistent one wins); y = C xi + D u + G1 u_ref;
- *               xi <- A xi + B u. Position-type outputs have no D from commands (causal).
+ *               xi <- A xi + B u, and while friction holds an axis at rest the state's
+ *               component in the stuck dynamics' Jordan block at z = -1 is set to its steady
+ *               value (stick_E1/E2, fdid_fmi.stick_maps). Position-type outputs have no D from
+ *               commands (causal).
  * The velocity of an axis is its model velocity output, or the backward difference
  * (x[k] - x[k-1]) / Ts of its position output when the model has none.
  *
@@ -88,6 +91,9 @@ typedef struct {
     const int *axis_tool_output;      /* per axis: tool_position output index or -1 */
     const double *axis_level0;        /* per axis: default friction level (0 if no friction) */
     const double *axis_vtilde0;       /* per axis: default v_tilde, mm/s (1 if no friction) */
+    const int *stick_slot;            /* 2^n_fric: per set of stuck friction inputs (bit j), the
+                                         slot of its update maps or -1 (fdid_fmi.stick_maps) */
+    const double *stick_E1, *stick_E2;/* slots * n*n: xi <- E1 (A xi + B u) - E2 xi when stuck */
     int n_vars;
     const FdidVar *vars;              /* value reference = position in this table */
 } FdidModel;
@@ -99,6 +105,8 @@ typedef struct {
     int init_dirty;       /* initial state must be (re)computed before use */
     int out_dirty;        /* outputs at the current time must be recomputed */
     int started;          /* a doStep has been taken */
+    int stuck;            /* friction inputs held at rest in the current outputs (bit j), 0 if
+                             any is in its linear band */
 } FdidFlags;
 
 typedef struct {
@@ -109,7 +117,7 @@ typedef struct {
     /* views into buf */
     double *xi, *x_prev, *v_prev, *cmd, *ext, *uref, *yoff, *u, *y, *vel;
     double *level, *vtilde, *on, *v0;
-    double *work_n, *work_m;  /* scratch */
+    double *work_n, *work_m, *work_n2;  /* scratch */
 } FdidState;
 
 size_t fdid_buffer_size(const FdidModel *M);
