@@ -286,9 +286,12 @@ def _run(plan, cmds, exts, t, v0):
         Y[k] = y
         U[k] = u
         xn = _mv(A, xi) + _mv(B, u)
-        slot = plan.stick.slot[stuck] if nf and stuck else -1
-        if slot >= 0:     # held at rest: drop the stuck dynamics' Jordan block at z = -1
-            xn = _mv(plan.stick.E1[slot], xn) - _mv(plan.stick.E2[slot], xi)
+        k = plan.stick.rank[stuck] if nf and stuck else 0
+        if k:             # held at rest: drop the stuck dynamics' Jordan block at z = -1
+            n, o = len(xi), plan.stick.offset[stuck]
+            Q, G1, G2 = np.split(plan.stick.data[o:o + 3 * n * k], 3)
+            g = _mv(G1.reshape(k, n), xn) - _mv(G2.reshape(k, n), xi)
+            xn = xn + _mv(Q.reshape(n, k), g)
         xi = xn
     return SimResult(t=np.asarray(t), y=Y, u=U, axes=_axis_view(plan, Y, cmds, V),
                      output_names=[p.name for p in m.outputs])

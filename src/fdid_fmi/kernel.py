@@ -38,8 +38,8 @@ class _Model(ct.Structure):
                 ("fric_input", _I), ("fric_vel_output", _I), ("fric_vel_diff", _I),
                 ("axis_cmd_input", _I), ("axis_pos_output", _I), ("axis_err_output", _I),
                 ("axis_vel_output", _I), ("axis_tool_output", _I),
-                ("axis_level0", _D), ("axis_vtilde0", _D), ("stick_slot", _I), ("stick_E1", _D),
-                ("stick_E2", _D), ("n_vars", ct.c_int), ("vars", ct.c_void_p)]
+                ("axis_level0", _D), ("axis_vtilde0", _D), ("stick_rank", _I), ("stick_offset", _I),
+                ("stick_data", _D), ("n_vars", ct.c_int), ("vars", ct.c_void_p)]
 
 
 class _Flags(ct.Structure):
@@ -116,16 +116,15 @@ class CompiledModel:
         ints = [_iarr(v) for v in (lay.fric_inputs, lay.fric_vel_output, lay.fric_vel_diff, lay.axis_cmd,
                                    lay.axis_pos, lay.axis_err, lay.axis_vel, lay.axis_tool)]
         dbls = [np.ascontiguousarray(v, dtype=float) for v in (lay.axis_level0, lay.axis_vtilde0)]
-        slot = _iarr(lay.stick.slot)
-        E1, E2 = (np.ascontiguousarray(E, dtype=float).ravel() if E.size else np.zeros(1)
-                  for E in (lay.stick.E1, lay.stick.E2))
-        self._keep += [ins, *ints, *dbls, slot, E1, E2]
+        rank, offset = _iarr(lay.stick.rank), _iarr(lay.stick.offset)
+        sdata = np.ascontiguousarray(lay.stick.data if lay.stick.data.size else np.zeros(1), dtype=float)
+        self._keep += [ins, *ints, *dbls, rank, offset, sdata]
         A, B, C, D, S_, S2_, G1_ = (_dptr(x) for x in self._keep[:7])
         self.c = _Model(b"kernel", b"", float(model.Ts), model.n_states, len(model.inputs),
                         len(model.outputs), len(lay.axes), A, B, C, D, S_, S2_, G1_, ins,
                         len(lay.fric_inputs), *(x.ctypes.data_as(_I) for x in ints),
-                        *(_dptr(x) for x in dbls), slot.ctypes.data_as(_I), _dptr(E1), _dptr(E2),
-                        0, None)
+                        *(_dptr(x) for x in dbls), rank.ctypes.data_as(_I),
+                        offset.ctypes.data_as(_I), _dptr(sdata), 0, None)
 
 
 class Stepper:

@@ -21,14 +21,19 @@ So at a stuck step the component of the state in the generalised eigenspace of A
 (projector P) is replaced by its steady value for this step's forcing, R f_k with
 R = P (I - A_s)^-1 on that space:
 
-    xi[k+1] = (I - P + R) xi' - R A_s xi[k] = E1 xi' - E2 xi[k],    xi' = A xi[k] + B u[k].
+    xi[k+1] = xi' + (R - P) xi' - R A_s xi[k],    xi' = A xi[k] + B u[k].
+
+Both maps act in the k-dimensional range of P (k = the block's size, 2 for one stuck axis), so
+with an orthonormal basis Q of it the step costs 3 k n products, not 2 n^2:
+
+    g = G1 xi' - G2 xi[k],   xi[k+1] = xi' + Q g,   G1 = Q^T (R - P), G2 = Q^T R A_s.
 
 The held position, the other outputs' smooth part and every other mode are unchanged.
 
 Which clusters are removed: only Jordan blocks (``MIN_MULTIPLICITY`` = 2: the mode grows). A
 single zero at -1 (the feed-forward twins' relative-degree-one friction path) alternates with a
-constant amplitude; removing it too was measured on the virtual drive with feed-forward and
-made the identified twins' validation error 1.2-2x larger, so it is left as identified.
+constant amplitude; removing it too and identifying again made the virtual drive's feed-forward
+twins' validation error 1.1-1.6x larger (README), so it is left as identified.
 """
 from __future__ import annotations
 
@@ -47,13 +52,15 @@ class StickMaps:
 
     Attributes
     ----------
-    slot : list[int]        length 2**n_fric; index into E1/E2, -1 = plain update
-    E1, E2 : (k, n, n)      xi[k+1] = E1 xi' - E2 xi[k] for the sets with a slot
+    rank : list[int]    length 2**n_fric; k of the set's maps, 0 = plain update
+    offset : list[int]  length 2**n_fric; where the set's Q (n x k), G1 and G2 (k x n, all
+                        row-major) start in ``data``
+    data : (total,) ndarray
     """
 
-    slot: list
-    E1: np.ndarray
-    E2: np.ndarray
+    rank: list
+    offset: list
+    data: np.ndarray
 
 
 def stuck_dynamics(A, B, C, D, Ts, fric_inputs, vel_output, vel_diff, stuck):
@@ -68,8 +75,8 @@ def stuck_dynamics(A, B, C, D, Ts, fric_inputs, vel_output, vel_diff, stuck):
 
 
 def nyquist_maps(As):
-    """(E1, E2) removing the generalised eigenspace of ``As`` at -1, or None if it has fewer than
-    MIN_MULTIPLICITY eigenvalues there."""
+    """(Q, G1, G2) removing the generalised eigenspace of ``As`` at -1, or None if it has fewer
+    than MIN_MULTIPLICITY eigenvalues there."""
     n = As.shape[0]
     T, Z, k = sla.schur(As, output="complex", sort=lambda z: abs(z + 1.0) < NYQUIST_TOL)
     if k < MIN_MULTIPLICITY:
@@ -83,22 +90,21 @@ def nyquist_maps(As):
     eye = np.eye(n)
     # R = P (I - A_s)^-1 on range(P); (I - A_s) P + (I - P) is invertible (A_s commutes with P)
     R = np.linalg.solve((eye - As) @ P + (eye - P), P)
-    return eye - P + R, R @ As
+    Q = np.linalg.svd(P)[0][:, :k]          # orthonormal basis of range(P), real
+    return Q, Q.T @ (R - P), Q.T @ (R @ As)
 
 
 def stick_maps(model, fric_inputs, vel_output, vel_diff):
     """The :class:`StickMaps` of a DriveModel, friction inputs and their velocity sources as in
     :class:`fdid_fmi.fmu.layout.FmuLayout`."""
     nf, n = len(fric_inputs), model.n_states
-    slot, E1, E2 = [-1] * (1 << nf), [], []
+    rank, offset, data = [0] * (1 << nf), [0] * (1 << nf), []
     for mask in range(1, 1 << nf):
         stuck = [j for j in range(nf) if mask >> j & 1]
         As = stuck_dynamics(model.A, model.B, model.C, model.D, model.Ts, fric_inputs, vel_output,
                             vel_diff, stuck)
         maps = nyquist_maps(As) if As is not None and n else None
         if maps is not None:
-            slot[mask] = len(E1)
-            E1.append(maps[0])
-            E2.append(maps[1])
-    shape = (len(E1), n, n)
-    return StickMaps(slot=slot, E1=np.array(E1).reshape(shape), E2=np.array(E2).reshape(shape))
+            rank[mask], offset[mask] = maps[0].shape[1], sum(x.size for x in data)
+            data += [x.ravel() for x in maps]
+    return StickMaps(rank=rank, offset=offset, data=np.concatenate(data) if data else np.zeros(0))

@@ -128,9 +128,9 @@ def model_data_c(layout, guid, model_identifier):
     parts.append(_iarray("data_axis_tool", layout.axis_tool))
     parts.append(_darray("data_axis_level0", layout.axis_level0))
     parts.append(_darray("data_axis_vtilde0", layout.axis_vtilde0))
-    parts.append(_iarray("data_stick_slot", layout.stick.slot))
-    parts.append(_darray("data_stick_E1", layout.stick.E1))
-    parts.append(_darray("data_stick_E2", layout.stick.E2))
+    parts.append(_iarray("data_stick_rank", layout.stick.rank))
+    parts.append(_iarray("data_stick_offset", layout.stick.offset))
+    parts.append(_darray("data_stick_data", layout.stick.data))
     vrows = []
     for v in layout.variables:
         t = 0 if v.type == "Real" else 1
@@ -145,7 +145,7 @@ def model_data_c(layout, guid, model_identifier):
         "    data_inputs,\n"
         f"    {len(layout.fric_inputs)}, data_fric_input, data_fric_vel_output, data_fric_vel_diff,\n"
         "    data_axis_cmd, data_axis_pos, data_axis_err, data_axis_vel, data_axis_tool,\n"
-        "    data_axis_level0, data_axis_vtilde0, data_stick_slot, data_stick_E1, data_stick_E2,\n"
+        "    data_axis_level0, data_axis_vtilde0, data_stick_rank, data_stick_offset, data_stick_data,\n"
         f"    {len(layout.variables)}, data_vars\n"
         "};\n")
     return "".join(parts)

@@ -388,7 +388,7 @@ void fdid_outputs(FdidState *S) {
 /* one internal step: outputs of the current time, then memory and state update */
 void fdid_advance(FdidState *S) {
     const FdidModel *M = S->M;
-    int n = M->n, m = M->m, i, a, slot;
+    int n = M->n, m = M->m, i, a, k, r;
     fdid_outputs(S);
     for (a = 0; a < M->n_axes; a++) {
         S->v_prev[a] = S->vel[a];
@@ -399,17 +399,17 @@ void fdid_advance(FdidState *S) {
         S->work_n[i] = fdid_dot(M->A + (size_t)i * (size_t)n, S->xi, n) +
                        fdid_dot(M->B + (size_t)i * (size_t)m, S->u, m);
     }
-    slot = S->f.stuck ? M->stick_slot[S->f.stuck] : -1;
-    if (slot >= 0) {
-        /* an axis held at rest: xi <- E1 xi' - E2 xi drops the stuck dynamics' growing
-         * alternation at z = -1 (fdid_fmi.stick_maps) */
-        const double *E1 = M->stick_E1 + (size_t)slot * (size_t)n * (size_t)n;
-        const double *E2 = M->stick_E2 + (size_t)slot * (size_t)n * (size_t)n;
-        for (i = 0; i < n; i++) {
-            S->work_n2[i] = fdid_dot(E1 + (size_t)i * (size_t)n, S->work_n, n) -
-                            fdid_dot(E2 + (size_t)i * (size_t)n, S->xi, n);
+    k = S->f.stuck ? M->stick_rank[S->f.stuck] : 0;
+    if (k > 0) {
+        /* an axis held at rest: g = G1 xi' - G2 xi, xi <- xi' + Q g drops the stuck dynamics'
+         * growing alternation at z = -1 (fdid_fmi.stick_maps) */
+        const double *Q = M->stick_data + M->stick_offset[S->f.stuck];
+        const double *G1 = Q + (size_t)n * (size_t)k, *G2 = G1 + (size_t)k * (size_t)n;
+        for (r = 0; r < k; r++) {
+            S->work_n2[r] = fdid_dot(G1 + (size_t)r * (size_t)n, S->work_n, n) -
+                            fdid_dot(G2 + (size_t)r * (size_t)n, S->xi, n);
         }
-        for (i = 0; i < n; i++) S->xi[i] = S->work_n2[i];
+        for (i = 0; i < n; i++) S->xi[i] = S->work_n[i] + fdid_dot(Q + (size_t)i * (size_t)k, S->work_n2, k);
     } else {
         for (i = 0; i < n; i++) S->xi[i] = S->work_n[i];
     }

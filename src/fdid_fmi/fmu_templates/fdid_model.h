@@ -17,7 +17,7 @@
  *               input, in that order, the first consistent one wins); y = C xi + D u + G1 u_ref;
  *               xi <- A xi + B u, and while friction holds an axis at rest the state's
  *               component in the stuck dynamics' Jordan block at z = -1 is set to its steady
- *               value (stick_E1/E2, fdid_fmi.stick_maps). Position-type outputs have no D from
+ *               value (stick_*, fdid_fmi.stick_maps). Position-type outputs have no D from
  *               commands (causal).
  * The velocity of an axis is its model velocity output, or the backward difference
  * (x[k] - x[k-1]) / Ts of its position output when the model has none.
@@ -91,9 +91,10 @@ typedef struct {
     const int *axis_tool_output;      /* per axis: tool_position output index or -1 */
     const double *axis_level0;        /* per axis: default friction level (0 if no friction) */
     const double *axis_vtilde0;       /* per axis: default v_tilde, mm/s (1 if no friction) */
-    const int *stick_slot;            /* 2^n_fric: per set of stuck friction inputs (bit j), the
-                                         slot of its update maps or -1 (fdid_fmi.stick_maps) */
-    const double *stick_E1, *stick_E2;/* slots * n*n: xi <- E1 (A xi + B u) - E2 xi when stuck */
+    const int *stick_rank;            /* 2^n_fric: per set of stuck friction inputs (bit j), the
+                                         rank k of its update maps, 0 = none (fdid_fmi.stick_maps) */
+    const int *stick_offset;          /* 2^n_fric: where its Q (n*k), G1, G2 (k*n) start */
+    const double *stick_data;         /* when stuck: g = G1 xi' - G2 xi, xi <- xi' + Q g */
     int n_vars;
     const FdidVar *vars;              /* value reference = position in this table */
 } FdidModel;
