@@ -12,7 +12,6 @@ import math
 import numpy as np
 
 from fdid_fmi.errors import InputError
-from fdid_fmi.fmu.layout import build_layout
 from fdid_fmi.model import DriveModel
 from fdid_fmi.simulate import SimResult, run_up
 from fdid_fmi.trace import Trace
@@ -91,8 +90,6 @@ class _Plan:
             else:
                 self.vsrc.append((self.pos[a], True))
         self.branches = list(itertools.product((STICK, 0, 1, -1), repeat=len(self.fric)))
-        lay = build_layout(model)
-        self.stick = lay.stick
 
 
 def _sat(x):
@@ -134,26 +131,25 @@ def solve_friction(alpha, beta, level, vt, branches):
     Returns
     -------
     d : (m,) friction input values
-    stuck : int, the inputs held at rest (bit i); 0 when any input is in its linear band
     """
     m = len(alpha)
     if m == 1:  # closed form, the common case
         L, v, a, b = float(level[0]), float(vt[0]), float(alpha[0]), float(beta[0][0])
         if L == 0.0:
-            return np.zeros(1), 0
+            return np.zeros(1)
         if b < 0.0:
             d = -a / b
             if abs(d) <= L:
-                return np.array([d]), 1
+                return np.array([d])
         den = v - L * b
         if den > 0:
             d = L * a / den
             if abs(d) <= L:
-                return np.array([d]), 0
+                return np.array([d])
         for s in (1.0, -1.0):
             if s * (a + b * s * L) >= v * (1 - _TOL):
-                return np.array([s * L]), 0
-        return np.array([L * _sat(a / v)]), 0
+                return np.array([s * L])
+        return np.array([L * _sat(a / v)])
     # plain floats: the same operations, in the same order, as the C core
     al = [float(x) for x in alpha]
     be = [[float(x) for x in row] for row in beta]
@@ -199,10 +195,8 @@ def solve_friction(alpha, beta, level, vt, branches):
                 ok = False
                 break
         if ok:
-            if any(br[i] == 0 and lv[i] != 0.0 for i in range(m)):
-                return np.array(d), 0
-            return np.array(d), sum(1 << i for i in range(m) if br[i] == STICK)
-    return np.array([lv[i] * _sat(al[i] / vv[i]) for i in range(m)]), 0
+            return np.array(d)
+    return np.array([lv[i] * _sat(al[i] / vv[i]) for i in range(m)])
 
 
 def oracle_simulate(model, trace_or_commands, Ts=None, start_velocity=None, params=None):
@@ -275,7 +269,7 @@ def _run(plan, cmds, exts, t, v0):
             alpha = np.empty(nf)
             for j, (o, diff) in enumerate(plan.vsrc):
                 alpha[j] = (y[o] - x_prev[ins[plan.fric[j]].axis]) / Ts if diff else y[o]
-            d, stuck = solve_friction(alpha, beta, plan.level, plan.vt, plan.branches)
+            d = solve_friction(alpha, beta, plan.level, plan.vt, plan.branches)
             for j, i in enumerate(plan.fric):
                 u[i] = d[j]
             y = y + _mv(D[:, plan.fric], d)
@@ -285,14 +279,7 @@ def _run(plan, cmds, exts, t, v0):
             V[a][k] = v_prev[a]
         Y[k] = y
         U[k] = u
-        xn = _mv(A, xi) + _mv(B, u)
-        k = plan.stick.rank[stuck] if nf and stuck else 0
-        if k:             # held at rest: drop the stuck dynamics' Jordan block at z = -1
-            n, o = len(xi), plan.stick.offset[stuck]
-            Q, G1, G2 = np.split(plan.stick.data[o:o + 3 * n * k], 3)
-            g = _mv(G1.reshape(k, n), xn) - _mv(G2.reshape(k, n), xi)
-            xn = xn + _mv(Q.reshape(n, k), g)
-        xi = xn
+        xi = _mv(A, xi) + _mv(B, u)
     return SimResult(t=np.asarray(t), y=Y, u=U, axes=_axis_view(plan, Y, cmds, V),
                      output_names=[p.name for p in m.outputs])
 

@@ -38,8 +38,7 @@ def test_python_backend_runs_in_fmpy_like_the_reference(tmp_path):
 def test_python_and_c_fmus_agree_bit_for_bit_even_in_stick_slip(tmp_path):
     """Both backends sum in numpy's pairwise order: identical outputs, even on a trace whose
     friction stick-slip amplifies any rounding difference (a 1e-12 mm change of the commands
-    moves the result by 2.2e-10 mm; it was > 1e-6 mm before the stuck-axis maps removed the
-    growing alternation of the holding force, fdid_fmi.stick_maps)."""
+    moves the result by more than 1e-6 mm)."""
     m = fs.coupled_model(vt_y=0.3)
     n = 1500
     rng = np.random.default_rng(4)
@@ -52,7 +51,7 @@ def test_python_and_c_fmus_agree_bit_for_bit_even_in_stick_slip(tmp_path):
     c_fmu = tmp_path / "c.fmu"
     bumped = {a: v + 1e-12 * rng.standard_normal(n) for a, v in cmds.items()}
     c2 = run_fmu(c_fmu, bumped, m.Ts, outputs=["y_x"])
-    assert np.abs(c2["y_x"] - c["y_x"]).max() > 1e-10           # rounding is amplified 100x
+    assert np.abs(c2["y_x"] - c["y_x"]).max() > 1e-6            # the regime is chaotic
 
 
 def test_python_backend_is_fmi2_only(tmp_path):

@@ -38,17 +38,16 @@ class _Model(ct.Structure):
                 ("fric_input", _I), ("fric_vel_output", _I), ("fric_vel_diff", _I),
                 ("axis_cmd_input", _I), ("axis_pos_output", _I), ("axis_err_output", _I),
                 ("axis_vel_output", _I), ("axis_tool_output", _I),
-                ("axis_level0", _D), ("axis_vtilde0", _D), ("stick_rank", _I), ("stick_offset", _I),
-                ("stick_data", _D), ("n_vars", ct.c_int), ("vars", ct.c_void_p)]
+                ("axis_level0", _D), ("axis_vtilde0", _D), ("n_vars", ct.c_int), ("vars", ct.c_void_p)]
 
 
 class _Flags(ct.Structure):
     _fields_ = [("steps", ct.c_longlong), ("init_dirty", ct.c_int), ("out_dirty", ct.c_int),
-                ("started", ct.c_int), ("stuck", ct.c_int)]
+                ("started", ct.c_int)]
 
 
 _VIEWS = ("xi", "x_prev", "v_prev", "cmd", "ext", "uref", "yoff", "u", "y", "vel",
-          "level", "vtilde", "on", "v0", "work_n", "work_m", "work_n2")
+          "level", "vtilde", "on", "v0", "work_n", "work_m")
 
 
 class _State(ct.Structure):
@@ -116,15 +115,12 @@ class CompiledModel:
         ints = [_iarr(v) for v in (lay.fric_inputs, lay.fric_vel_output, lay.fric_vel_diff, lay.axis_cmd,
                                    lay.axis_pos, lay.axis_err, lay.axis_vel, lay.axis_tool)]
         dbls = [np.ascontiguousarray(v, dtype=float) for v in (lay.axis_level0, lay.axis_vtilde0)]
-        rank, offset = _iarr(lay.stick.rank), _iarr(lay.stick.offset)
-        sdata = np.ascontiguousarray(lay.stick.data if lay.stick.data.size else np.zeros(1), dtype=float)
-        self._keep += [ins, *ints, *dbls, rank, offset, sdata]
+        self._keep += [ins, *ints, *dbls]
         A, B, C, D, S_, S2_, G1_ = (_dptr(x) for x in self._keep[:7])
         self.c = _Model(b"kernel", b"", float(model.Ts), model.n_states, len(model.inputs),
                         len(model.outputs), len(lay.axes), A, B, C, D, S_, S2_, G1_, ins,
                         len(lay.fric_inputs), *(x.ctypes.data_as(_I) for x in ints),
-                        *(_dptr(x) for x in dbls), rank.ctypes.data_as(_I),
-                        offset.ctypes.data_as(_I), _dptr(sdata), 0, None)
+                        *(_dptr(x) for x in dbls), 0, None)
 
 
 class Stepper:

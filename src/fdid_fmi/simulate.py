@@ -33,11 +33,7 @@ Step k, given xi, the inputs (commands, externals) and the axis states of step k
    that order; the first consistent one wins. A one-sample lag instead limit-cycles at rest
    when L*|beta|/v_tilde >> 1, and without the stick branch an axis at rest creeps through
    the viscous transition band;
-3. y = C xi + D u + G1 u_ref; xi <- A xi + B u, and when friction holds axes at rest the
-   state's component in the stuck dynamics' Jordan block at z = -1 (Tustin images of
-   s = infinity: a holding force alternating from sample to sample and growing) is set to its
-   steady value (:mod:`fdid_fmi.stick_maps`); without this a twin at rest crept by
-   single-sample slips.
+3. y = C xi + D u + G1 u_ref; xi <- A xi + B u.
 Sums are numpy's pairwise order with plain IEEE products (no fused multiply-add).
 """
 from __future__ import annotations

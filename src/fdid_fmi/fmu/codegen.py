@@ -2,8 +2,8 @@
 
 Everything model-specific is constant data: the unscaled state space (A, B, C, D), the
 steady-state maps of :meth:`DriveModel.steady_state_maps` (S, S2, G1), Ts, the port table
-(kinds, axes, feature parameters), the friction inputs and their velocity sources, the
-stuck-axis update maps (:mod:`fdid_fmi.stick_maps`) and the FMI variable table. The semantics live in ``fmu_templates/fdid_core.c`` (written once).
+(kinds, axes, feature parameters), the friction inputs and their velocity sources, and the
+FMI variable table. The semantics live in ``fmu_templates/fdid_core.c`` (written once).
 Numbers are written with ``repr`` (shortest round-trip form), so the C compiler reads back
 exactly the doubles that the reference simulator uses.
 """
@@ -128,9 +128,6 @@ def model_data_c(layout, guid, model_identifier):
     parts.append(_iarray("data_axis_tool", layout.axis_tool))
     parts.append(_darray("data_axis_level0", layout.axis_level0))
     parts.append(_darray("data_axis_vtilde0", layout.axis_vtilde0))
-    parts.append(_iarray("data_stick_rank", layout.stick.rank))
-    parts.append(_iarray("data_stick_offset", layout.stick.offset))
-    parts.append(_darray("data_stick_data", layout.stick.data))
     vrows = []
     for v in layout.variables:
         t = 0 if v.type == "Real" else 1
@@ -145,7 +142,7 @@ def model_data_c(layout, guid, model_identifier):
         "    data_inputs,\n"
         f"    {len(layout.fric_inputs)}, data_fric_input, data_fric_vel_output, data_fric_vel_diff,\n"
         "    data_axis_cmd, data_axis_pos, data_axis_err, data_axis_vel, data_axis_tool,\n"
-        "    data_axis_level0, data_axis_vtilde0, data_stick_rank, data_stick_offset, data_stick_data,\n"
+        "    data_axis_level0, data_axis_vtilde0,\n"
         f"    {len(layout.variables)}, data_vars\n"
         "};\n")
     return "".join(parts)

@@ -31,7 +31,6 @@ import numpy as np
 
 from ..errors import InputError
 from ..model import DriveModel, QuasiStaticModel, delayed_input
-from ..stick_maps import StickMaps, stick_maps
 
 # FMI unit name and base-unit exponents/factor (to SI) for the canonical units of fdid_fmi.units
 FMI_UNITS = {
@@ -91,7 +90,6 @@ class FmuLayout:
     axis_level0: list
     axis_vtilde0: list
     uses_libm: bool
-    stick: StickMaps          # stuck-axis update maps (fdid_fmi.stick_maps)
 
     def by_name(self, name):
         for v in self.variables:
@@ -256,8 +254,7 @@ def build_layout(model):
         v.depends = [in_name[d] for d in v.depends]
     return FmuLayout(model=m, axes=axes, variables=V, fric_inputs=fric, fric_vel_output=fvo,
                      fric_vel_diff=fvd, axis_cmd=cmd, axis_pos=pos, axis_err=err, axis_vel=vel,
-                     axis_tool=tool, axis_level0=level0, axis_vtilde0=vt0, uses_libm=uses_libm,
-                     stick=stick_maps(m, fric, fvo, fvd))
+                     axis_tool=tool, axis_level0=level0, axis_vtilde0=vt0, uses_libm=uses_libm)
 
 
 def _or(i):

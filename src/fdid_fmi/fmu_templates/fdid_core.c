@@ -31,9 +31,8 @@ static double fdid_abs(double x) { return x < 0.0 ? -x : x; }
 /* ------------------------------------------------------------------ layout */
 size_t fdid_buffer_size(const FdidModel *M) {
     size_t n = (size_t)M->n, m = (size_t)M->m, p = (size_t)M->p, a = (size_t)M->n_axes;
-    /* xi, x_prev, v_prev, cmd, ext, uref, yoff, u, y, vel, level, vtilde, on, v0, work_n, work_m,
-     * work_n2 */
-    return n + a + a + a + m + m + p + m + p + a + a + a + a + a + n + m + n;
+    /* xi, x_prev, v_prev, cmd, ext, uref, yoff, u, y, vel, level, vtilde, on, v0, work_n, work_m */
+    return n + a + a + a + m + m + p + m + p + a + a + a + a + a + n + m;
 }
 
 void fdid_state_bind(FdidState *S, const FdidModel *M, double *buf) {
@@ -57,8 +56,7 @@ void fdid_state_bind(FdidState *S, const FdidModel *M, double *buf) {
     S->on = q; q += a;
     S->v0 = q; q += a;
     S->work_n = q; q += n;
-    S->work_m = q; q += m;
-    S->work_n2 = q;
+    S->work_m = q;
 }
 
 /* start values of inputs and parameters; the state is marked for initialisation */
@@ -77,7 +75,6 @@ void fdid_state_defaults(FdidState *S) {
     S->f.init_dirty = 1;
     S->f.out_dirty = 1;
     S->f.started = 0;
-    S->f.stuck = 0;
 }
 
 /* -------------------------------------------------------------- building blocks */
@@ -214,27 +211,26 @@ static int lu_solve(double *Mx, double *rhs, int k) {
 enum { BR_STICK = 2, BR_LINEAR = 0 };
 static const int branch_code[4] = {BR_STICK, BR_LINEAR, 1, -1};
 
-/* returns the set of inputs held at rest (bit i), 0 when any input is in its linear band */
-static int solve_friction(int m, const double *alpha, const double *beta, const double *level,
-                          const double *vt, double *d) {
+static void solve_friction(int m, const double *alpha, const double *beta, const double *level,
+                           const double *vt, double *d) {
     int br[FDID_MAX_FRICTION];
     int nb = 1, b, i, j;
     if (m == 1) {
         double L = level[0], v = vt[0], a = alpha[0], bb = beta[0], den;
-        if (L == 0.0) { d[0] = 0.0; return 0; }
+        if (L == 0.0) { d[0] = 0.0; return; }
         if (bb < 0.0) {
             double x = -a / bb;
-            if (fdid_abs(x) <= L) { d[0] = x; return 1; }
+            if (fdid_abs(x) <= L) { d[0] = x; return; }
         }
         den = v - L * bb;
         if (den > 0) {
             double x = L * a / den;
-            if (fdid_abs(x) <= L) { d[0] = x; return 0; }
+            if (fdid_abs(x) <= L) { d[0] = x; return; }
         }
-        if (1.0 * (a + bb * 1.0 * L) >= v * (1 - FDID_TOL)) { d[0] = L; return 0; }
-        if (-1.0 * (a + bb * -1.0 * L) >= v * (1 - FDID_TOL)) { d[0] = -L; return 0; }
+        if (1.0 * (a + bb * 1.0 * L) >= v * (1 - FDID_TOL)) { d[0] = L; return; }
+        if (-1.0 * (a + bb * -1.0 * L) >= v * (1 - FDID_TOL)) { d[0] = -L; return; }
         d[0] = L * fdid_sat(a / v);
-        return 0;
+        return;
     }
     for (i = 0; i < m; i++) nb *= 4;
     for (b = 0; b < nb; b++) {
@@ -280,17 +276,9 @@ static int solve_friction(int m, const double *alpha, const double *beta, const 
             else if (br[i] == 1 && z < 1 - FDID_TOL) ok = 0;
             else if (br[i] == -1 && z > -1 + FDID_TOL) ok = 0;
         }
-        if (ok) {
-            int mask = 0;
-            for (i = 0; i < m; i++) {
-                if (br[i] == BR_LINEAR && level[i] != 0.0) return 0;
-                if (br[i] == BR_STICK) mask |= 1 << i;
-            }
-            return mask;
-        }
+        if (ok) return;
     }
     for (i = 0; i < m; i++) d[i] = level[i] * fdid_sat(alpha[i] / vt[i]);
-    return 0;
 }
 
 /* ------------------------------------------------------------ initial state */
@@ -370,7 +358,7 @@ void fdid_outputs(FdidState *S) {
             lev[j] = fric_level(S, j);
             vt[j] = fric_vtilde(S, j);
         }
-        S->f.stuck = solve_friction(nf, alpha, beta, lev, vt, d);
+        solve_friction(nf, alpha, beta, lev, vt, d);
         for (j = 0; j < nf; j++) u[M->fric_input[j]] = d[j];
         for (o = 0; o < p; o++) {
             double s = 0.0;
@@ -388,7 +376,7 @@ void fdid_outputs(FdidState *S) {
 /* one internal step: outputs of the current time, then memory and state update */
 void fdid_advance(FdidState *S) {
     const FdidModel *M = S->M;
-    int n = M->n, m = M->m, i, a, k, r;
+    int n = M->n, m = M->m, i, a;
     fdid_outputs(S);
     for (a = 0; a < M->n_axes; a++) {
         S->v_prev[a] = S->vel[a];
@@ -399,20 +387,7 @@ void fdid_advance(FdidState *S) {
         S->work_n[i] = fdid_dot(M->A + (size_t)i * (size_t)n, S->xi, n) +
                        fdid_dot(M->B + (size_t)i * (size_t)m, S->u, m);
     }
-    k = S->f.stuck ? M->stick_rank[S->f.stuck] : 0;
-    if (k > 0) {
-        /* an axis held at rest: g = G1 xi' - G2 xi, xi <- xi' + Q g drops the stuck dynamics'
-         * growing alternation at z = -1 (fdid_fmi.stick_maps) */
-        const double *Q = M->stick_data + M->stick_offset[S->f.stuck];
-        const double *G1 = Q + (size_t)n * (size_t)k, *G2 = G1 + (size_t)k * (size_t)n;
-        for (r = 0; r < k; r++) {
-            S->work_n2[r] = fdid_dot(G1 + (size_t)r * (size_t)n, S->work_n, n) -
-                            fdid_dot(G2 + (size_t)r * (size_t)n, S->xi, n);
-        }
-        for (i = 0; i < n; i++) S->xi[i] = S->work_n[i] + fdid_dot(Q + (size_t)i * (size_t)k, S->work_n2, k);
-    } else {
-        for (i = 0; i < n; i++) S->xi[i] = S->work_n[i];
-    }
+    for (i = 0; i < n; i++) S->xi[i] = S->work_n[i];
     S->f.steps += 1;
     S->f.out_dirty = 1;
 }

@@ -15,10 +15,7 @@
  *               d = L sat(v / v_tilde) solved exactly with stiction (v = alpha + beta d is
  *               affine in d: branches stick (v = 0, |d| <= L) / linear / +1 / -1 per friction
  *               input, in that order, the first consistent one wins); y = C xi + D u + G1 u_ref;
- *               xi <- A xi + B u, and while friction holds an axis at rest the state's
- *               component in the stuck dynamics' Jordan block at z = -1 is set to its steady
- *               value (stick_*, fdid_fmi.stick_maps). Position-type outputs have no D from
- *               commands (causal).
+ *               xi <- A xi + B u. Position-type outputs have no D from commands (causal).
  * The velocity of an axis is its model velocity output, or the backward difference
  * (x[k] - x[k-1]) / Ts of its position output when the model has none.
  *
@@ -91,10 +88,6 @@ typedef struct {
     const int *axis_tool_output;      /* per axis: tool_position output index or -1 */
     const double *axis_level0;        /* per axis: default friction level (0 if no friction) */
     const double *axis_vtilde0;       /* per axis: default v_tilde, mm/s (1 if no friction) */
-    const int *stick_rank;            /* 2^n_fric: per set of stuck friction inputs (bit j), the
-                                         rank k of its update maps, 0 = none (fdid_fmi.stick_maps) */
-    const int *stick_offset;          /* 2^n_fric: where its Q (n*k), G1, G2 (k*n) start */
-    const double *stick_data;         /* when stuck: g = G1 xi' - G2 xi, xi <- xi' + Q g */
     int n_vars;
     const FdidVar *vars;              /* value reference = position in this table */
 } FdidModel;
@@ -106,8 +99,6 @@ typedef struct {
     int init_dirty;       /* initial state must be (re)computed before use */
     int out_dirty;        /* outputs at the current time must be recomputed */
     int started;          /* a doStep has been taken */
-    int stuck;            /* friction inputs held at rest in the current outputs (bit j), 0 if
-                             any is in its linear band */
 } FdidFlags;
 
 typedef struct {
@@ -118,7 +109,7 @@ typedef struct {
     /* views into buf */
     double *xi, *x_prev, *v_prev, *cmd, *ext, *uref, *yoff, *u, *y, *vel;
     double *level, *vtilde, *on, *v0;
-    double *work_n, *work_m, *work_n2;  /* scratch */
+    double *work_n, *work_m;  /* scratch */
 } FdidState;
 
 size_t fdid_buffer_size(const FdidModel *M);
