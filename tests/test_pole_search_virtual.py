@@ -117,6 +117,25 @@ def test_flexible_mode_from_tool_position(flexible):
         assert rms(pred - e_tool) < 0.005 * rms(e_tool), name   # measured 0.2-0.3 %
 
 
+def test_flexible_mode_by_default(flexible):
+    """``fdid identify`` with no structure flags on a trace that records the tool side: every
+    candidate also predicts the tool position and is scored on it, and the choice carries the
+    drive-train mode -- default search bounds (up to Nyquist), no damping on a bound."""
+    from fdid_fmi.identify import StructureChoice, identify_auto
+    cfg, train, vals, _, mode = flexible
+    m = identify_auto(train, "y", seed=0, workers=2)
+    ch = StructureChoice.from_dict(m.identification["structure_choice"])
+    assert ch.outputs == ["error", "tool_position"] and ch.chosen == "r1c2"     # measured: r1c2
+    assert not next(c for c in ch.candidates if c.chosen).on_bound
+    f, z = _mode_of(m)
+    assert f == pytest.approx(mode["hz"], rel=0.02)          # measured 25.65 Hz (truth 25.66)
+    assert z == pytest.approx(mode["zeta"], rel=0.30)        # measured 0.0138 (truth 0.0140)
+    for name, v in vals.items():
+        e_tool = v.cmd("y") - v.get("y", "tool")
+        pred = v.cmd("y") - simulate(m, v).axes["y"]["tool_position"]
+        assert rms(pred - e_tool) < 0.005 * rms(e_tool), name   # measured 0.29 / 0.54 um
+
+
 def test_flexible_mode_from_tool_acceleration(flexible):
     """Fitted on the tool-side acceleration; a double integrator appended by shifting the
     numerators (Eqn 5.26-5.29) and a 2nd-order d.c.-gain constraint (Eqn 5.15) keep the
