@@ -26,14 +26,16 @@ the one-step equation error). When every training trace records the axis's tool-
 (role ``tool``), every candidate also predicts it (outputs error and tool_position) and the
 score covers both: a drive-train mode shows on the tool side far more than in the motor-side
 error (the virtual flexible Y axis: the error-only choice put two pairs at 6.6 and 15.2 Hz; with
-the tool side, r1c2 finds the 25.66 Hz mode within 0.1 %). A held-out score (the last 30 % of the training moves, the model
-fitted on the rest) was tried first and dropped: on the feed-forward virtual axis it ranked the
-structures against their validation on a circle and a diamond (it chose two complex pairs, 1.16-1.25x
-the validation error of the structure the free run chooses), because the few moves held out
-say less about a structure than all of them run freely; with at most 18 parameters against
-thousands of samples the free run is not fitting noise. The candidates run in parallel
-processes. Every candidate, its score and the choice are the model's
-``identification["structure_choice"]`` (:class:`StructureChoice`).
+the tool side, r1c2 finds the 25.66 Hz mode within 0.1 %).
+
+A held-out score (the last 30 % of the training moves, the model fitted on the rest) was tried
+first and dropped: on the feed-forward virtual axis it ranked the structures against their
+validation on a circle and a diamond (it chose two complex pairs, 1.16-1.25x the validation
+error of the structure the free run chooses), because the few moves held out say less about a
+structure than all of them run freely; with at most 18 parameters against thousands of samples
+the free run is not fitting noise. The candidates run in parallel processes. Every candidate,
+its score and the choice are the model's ``identification["structure_choice"]``
+(:class:`StructureChoice`).
 """
 from __future__ import annotations
 
