@@ -5,7 +5,7 @@ fixed-step RK4 with an exact bristle update, jerk-filter paths) shares no code w
 ``fdid_fmi.virtual``. On every scenario of ``plant2.scenarios``:
 
 1. identification with the public API -- every candidate of the automatic structure choice
-   (``choose_structure.fit_structures``; the one ``choose_with_output`` picks is the default of ``fdid
+   (``choose_structure.fit_structures``; the one ``choose`` picks is the default of ``fdid
    identify``), Full LS and quasi-static -- each simulated (``fdid_fmi.simulate.simulate``) on the
    three validation traces (circle, diamond, reversals): free-run RMS of the predicted minus
    measured tracking error, its ratio to the better of Full LS / quasi-static, and the default's
@@ -47,7 +47,7 @@ from fdid_fmi.diagnose import augment as ag  # noqa: E402
 from fdid_fmi.diagnose.base import Context  # noqa: E402
 from fdid_fmi.diagnose.residuals import residuals  # noqa: E402
 from fdid_fmi.identify import (identify_full_ls, identify_quasi_static, identify_siso)  # noqa: E402
-from fdid_fmi.identify.choose_structure import choose_with_output, fit_structures  # noqa: E402
+from fdid_fmi.identify.choose_structure import choose, fit_structures  # noqa: E402
 from fdid_fmi.metrics import rms  # noqa: E402
 from fdid_fmi.simulate import simulate  # noqa: E402
 from plant2 import scenarios as p2  # noqa: E402
@@ -118,15 +118,14 @@ def identification(name):
         res["methods"]["quasi_static"], _ = _fit("quasi-static", lambda: identify_quasi_static(tr, axes=[ax]),
                                                  vals, ax)
         # the default of `fdid identify` (identify_auto): every candidate structure is fitted
-        # (fit_structures), the choice rule picks one, and its position-output fit replaces it if
-        # that runs 5 % lower; the exhaustive search over the same candidates is their validation RMS
+        # (fit_structures) and the choice rule picks one; the exhaustive search over the same
+        # candidates is their validation RMS
         t, (results, probes) = timed(lambda: fit_structures(tr, ax, seed=0, workers=2))
-        chosen, pos = choose_with_output(results, [tr], ax, seed=0)
-        results = results + [pos]
+        chosen = choose([r for r, _ in results])
         res["structure_choice_wall_s"] = t
         print(f"  structure choice: {t:.0f} s, chosen {chosen.label} {chosen.same_sample}", flush=True)
         for r, m in results + probes:
-            key = f"{r.label} {r.same_sample}" + (" position" if r.output == "position" else "")
+            key = f"{r.label} {r.same_sample}"
             entry = {"train_free_run_um": r.free_run_rms_mm * 1e3, "parameters": r.parameters,
                      "on_bound": r.on_bound, "real_hz": r.real_hz, "complex_hz_zeta": r.complex_hz_zeta}
             entry["val_rms_um"] = _val_rms(m, vals, ax) if m is not None else {}

@@ -14,11 +14,7 @@ axis a second complex pair, a P/PD position loop a friction d.c. gain (the 1/P(s
 2. identifies every other candidate -- rigid body, two real poles, two complex pairs, both; each
    with and without integral action -- with that prediction;
 3. keeps the structure with the fewest parameters whose free-run RMS is within ``PARSIMONY`` of
-   the best one (a more complex structure must win by that margin);
-4. fits that structure once more with the position as its output instead of the tracking error
-   (the same parameters; e = x_r - x either way) and keeps that fit if its free run is lower by
-   the same margin. The thesis fits the error; on EMPS the position fit of the chosen structure
-   ran 11 % lower in free run on the training record (1.33 against 1.50 um).
+   the best one (a more complex structure must win by that margin).
 
 The score is the free-run RMS (mm) of the predicted minus measured tracking error on the training
 data: the model driven by the commands alone, which the LS projection does not minimise (it fits
@@ -102,7 +98,6 @@ class CandidateScore:
     same_sample: str
     free_run_rms_mm: float
     wall_s: float
-    output: str = "error"             # the fitted motor-side output: error or position
     real_hz: list = field(default_factory=list)
     complex_hz_zeta: list = field(default_factory=list)
     on_bound: bool = False
@@ -133,7 +128,7 @@ class StructureChoice:
     parsimony: float
     workers: int
     wall_s: float
-    outputs: list = field(default_factory=lambda: ["error"])   # fitted outputs of the choice
+    outputs: list = field(default_factory=lambda: ["error"])   # fitted and scored
 
     def to_dict(self):
         d = dataclasses.asdict(self)
@@ -152,12 +147,11 @@ class StructureChoice:
         lines = [f"structure of axis {self.axis}: {self.chosen}, {self.same_sample} (training free run "
                  f"of {' + '.join(self.outputs)}, {len(self.candidates)} fits, parsimony "
                  f"{self.parsimony:.0%}, {self.wall_s:.0f} s)"]
-        for c in sorted(self.candidates, key=lambda c: (c.parameters, c.same_sample, c.output)):
+        for c in sorted(self.candidates, key=lambda c: (c.parameters, c.same_sample)):
             ok = np.isfinite(c.free_run_rms_mm)
             rms = f"{c.free_run_rms_mm * 1e3:8.3f} µm {c.free_run_rms_mm / best:5.2f}x" if ok else "  failed"
             lines.append(f"  {'*' if c.chosen else ' '} {c.label:<10} {c.parameters:3d} parameters "
-                         f"{c.same_sample:<9} {c.output:<8} {rms}"
-                         f"{'  (a pole on its search bound)' if c.on_bound else ''}")
+                         f"{c.same_sample:<9} {rms}{'  (a pole on its search bound)' if c.on_bound else ''}")
         return lines
 
 
@@ -167,10 +161,10 @@ def parameter_count(structure):
     return structure.n_real + 2 * structure.n_complex + n_terms - len(structure.dc_gain)
 
 
-def scored_outputs(traces, axis, motor="error"):
-    """The outputs every candidate fits and is scored on: the tracking error (or, ``motor``, the
-    position), and the tool-side position when every trace records it."""
-    return [motor, "tool_position"] if all(tr.has(axis, "tool") for tr in traces) else [motor]
+def scored_outputs(traces, axis):
+    """The outputs every candidate fits and is scored on: the tracking error, and the tool-side
+    position when every trace records it."""
+    return ["error", "tool_position"] if all(tr.has(axis, "tool") for tr in traces) else ["error"]
 
 
 def free_run_rms(model, traces, axis, outputs=("error",)):
@@ -206,8 +200,7 @@ def fit_candidate(job):
     t0 = time.perf_counter()
     st = cand.structure(axis, same_sample, opts["velocity"], opts["ma_order"], opts["outputs"])
     bounds = cand.bounds(traces[0].Ts)
-    res = CandidateScore(cand.label, parameter_count(st), same_sample, float("inf"), 0.0,
-                         output=opts["outputs"][0])
+    res = CandidateScore(cand.label, parameter_count(st), same_sample, float("inf"), 0.0)
     model = None
     try:
         with warnings.catch_warnings():   # ill-conditioned LS of the larger structures: scored anyway
@@ -247,7 +240,8 @@ def fit_structures(traces, axis="x", same_sample=None, v_tilde=None, method="de"
     chosen same-sample prediction, ``probes`` are the r2c1 fits with the other predictions.
     """
     traces = [traces] if not isinstance(traces, (list, tuple)) else list(traces)
-    opts = _options(traces, axis, v_tilde, seed, maxiter, method, velocity, ma_order)
+    opts = dict(v_tilde=v_tilde, seed=seed, maxiter=maxiter, method=method, velocity=velocity,
+                ma_order=ma_order, outputs=scored_outputs(traces, axis))
     forms = [same_sample] if same_sample else list(CHOSEN_FROM)
     pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
 
@@ -265,34 +259,6 @@ def fit_structures(traces, axis="x", same_sample=None, v_tilde=None, method="de"
         if pool is not None:
             pool.shutdown()
     return results, [rm for rm in first if rm[0].same_sample != form]
-
-
-def _options(traces, axis, v_tilde, seed, maxiter, method, velocity, ma_order, motor="error"):
-    return dict(v_tilde=v_tilde, seed=seed, maxiter=maxiter, method=method, velocity=velocity,
-                ma_order=ma_order, outputs=scored_outputs(traces, axis, motor))
-
-
-def fit_position_output(traces, axis, best, v_tilde=None, method="de", seed=0, maxiter=None,
-                        velocity="backward", ma_order=1):
-    """Step 4 of the module docstring: the chosen candidate ``best`` (CandidateScore) fitted with
-    the position output. Returns (CandidateScore, DriveModel or None)."""
-    cand = next(c for c in family(True) + family(False) if c.label == best.label)
-    opts = _options(traces, axis, v_tilde, seed, maxiter, method, velocity, ma_order, motor="position")
-    return fit_candidate((cand, best.same_sample, traces, axis, opts))
-
-
-def choose_with_output(results, traces, axis, parsimony=PARSIMONY, **fit_kw):
-    """Steps 3 and 4 of the module docstring on the ``results`` of :func:`fit_structures`.
-
-    Returns
-    -------
-    (CandidateScore chosen, (CandidateScore, DriveModel) of the position-output fit)
-    """
-    best = choose([r for r, _ in results], parsimony)
-    pos = fit_position_output(traces, axis, best, **fit_kw)
-    if pos[0].free_run_rms_mm < best.free_run_rms_mm * (1 - parsimony):
-        best = pos[0]
-    return best, pos
 
 
 def identify_auto(traces, axis="x", same_sample=None, v_tilde=None, method="de", seed=0, maxiter=None,
@@ -319,15 +285,14 @@ def identify_auto(traces, axis="x", same_sample=None, v_tilde=None, method="de",
     workers = max(1, int(workers or os.cpu_count() or 1))
     results, probes = fit_structures(traces, axis, same_sample, v_tilde, method, seed, maxiter, velocity,
                                      ma_order, workers)
-    best, pos = choose_with_output(results, traces, axis, parsimony, v_tilde=v_tilde, method=method,
-                                   seed=seed, maxiter=maxiter, velocity=velocity, ma_order=ma_order)
+    best = choose([r for r, _ in results], parsimony)
     best.chosen = True
-    model = next(m for r, m in results + [pos] if r is best)
+    model = next(m for r, m in results if r is best)
     model.method = "pole-search"
     choice = StructureChoice(axis=axis, chosen=best.label, same_sample=best.same_sample,
-                             candidates=[r for r, _ in results + probes + [pos]], parsimony=parsimony,
+                             candidates=[r for r, _ in results + probes], parsimony=parsimony,
                              workers=workers, wall_s=time.perf_counter() - t0,
-                             outputs=scored_outputs(traces, axis, best.output))
+                             outputs=scored_outputs(traces, axis))
     rec = PoleSearchRecord.from_dict(model.identification)
     rec.structure_choice = choice.to_dict()
     model.identification = rec.to_dict()
