@@ -32,9 +32,11 @@ def data(cfg, ax, n_moves=20):
 
 
 def assert_rests(model, ax):
-    """5 s at rest after three moves: the twin holds still (stiction, no creep) on almost every
-    sample, and never reverses from one sample to the next (no chatter); what moves is a few
-    breakaways of its integral action against the holding friction."""
+    """5 s at rest after three moves: the twin holds still (stiction) on almost every sample, and
+    never reverses from one sample to the next (no chatter). What moves are single-sample slips:
+    without feed-forward the holding force alternates and grows (a Jordan block at z = -1 of the
+    stuck dynamics, from the Tustin friction path) until it exceeds L; with feed-forward the
+    integral action winds up against the holding friction (README, "At rest")."""
     mv = tj.linear_moves(n_moves=3, axes=(ax,), Ts=model.Ts, seed=5)[ax]
     n = int(5 / model.Ts)
     v = simulate(model, {ax: np.concatenate([mv, np.full(n, mv[-1])])}, Ts=model.Ts).axes[ax]["velocity"]
