@@ -8,8 +8,8 @@ commands alone) against the simulated measurement.
 import numpy as np
 import pytest
 
-from fdid_fmi.identify import (Bounds, identify_full_ls, identify_mimo, identify_quasi_static,
-                               identify_siso, mimo_structure)
+from fdid_fmi.identify import (Bounds, StructureChoice, identify_auto, identify_full_ls, identify_mimo,
+                               identify_quasi_static, identify_siso, mimo_structure)
 from fdid_fmi.metrics import rms
 from fdid_fmi.model import DriveModel
 from fdid_fmi.simulate import simulate
@@ -123,7 +123,6 @@ def test_flexible_mode_by_default(flexible):
     """``fdid identify`` with no structure flags on a trace that records the tool side: every
     candidate also predicts the tool position and is scored on it, and the choice carries the
     drive-train mode -- default search bounds (up to Nyquist), no damping on a bound."""
-    from fdid_fmi.identify import StructureChoice, identify_auto
     cfg, train, vals, _, mode = flexible
     m = identify_auto(train, "y", seed=0, workers=2)
     ch = StructureChoice.from_dict(m.identification["structure_choice"])

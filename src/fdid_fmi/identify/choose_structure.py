@@ -58,10 +58,11 @@ ZETA_TWO_PAIRS = (0.005, 2.0)  # a structural mode is lightly damped: below the 
 
 @dataclass(frozen=True)
 class Candidate:
-    """One candidate structure: ``rigid`` is the thesis's SISO model (Eqn 4.10-4.15), ``rNcM`` a
-    MIMO structure with N real poles and M complex pairs and the default numerator masks
-    (``structure.default_mask``); ``integral_action=False`` (``-noI``) adds the friction d.c.
-    path (1/P(s)) of a P/PD position loop."""
+    """One candidate structure: ``rigid`` is the thesis's SISO model (Eqn 4.10-4.15; with a
+    tool-side output, which that model lacks, the MIMO r1c1), ``rNcM`` a MIMO structure with N
+    real poles and M complex pairs and the default numerator masks (``structure.default_mask``);
+    ``integral_action=False`` (``-noI``) adds the friction d.c. path (1/P(s)) of a P/PD position
+    loop."""
 
     label: str
     n_real: int
