@@ -9,6 +9,10 @@ in one run, on the same models and commands (single core, BLAS threads pinned to
 - an identified causal pole-search axis (virtual drive, no feed-forward);
 - the two-axis coupled model with two friction inputs.
 
+The compiled core is timed as best of 3 after one warm-up run (the first run of a process also
+pays the operating system's page faults of its fresh output arrays, 20-25 % on 2 M samples;
+identification and fleets call it many times).
+
     .venv/bin/python benchmarks/bench_simulate.py [--quick]
 
 Writes benchmarks/results/bench_simulate.json and prints a table (samples/s; target for the
@@ -61,6 +65,7 @@ def main():
         rng = np.random.default_rng(0)
         cmd_fast = {ax: fs.smooth_moves(n_fast, rng, start=1.0 + i) for i, ax in enumerate(m.axes)}
         cmd_slow = {ax: c[:n_slow] for ax, c in cmd_fast.items()}
+        simulate(m, cmd_fast, Ts=m.Ts)      # warm-up: the first run also page-faults its fresh arrays
         t_c, res = timed(lambda: simulate(m, cmd_fast, Ts=m.Ts), 3)
         t_py, ref = timed(lambda: oracle_simulate(m, cmd_slow, Ts=m.Ts), 1)
         c_c, _ = timed(lambda: simulate(m, cmd_fast, Ts=m.Ts), 3, clock=time.process_time)

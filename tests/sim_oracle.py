@@ -1,7 +1,7 @@
 """The slow pure-Python oracle of the simulation step (tests only).
 
 This is the step of ``fmu_templates/fdid_core.c`` written out in Python, operation by operation
-in the same order (numpy's pairwise sums, the same LU elimination), as it was the reference
+in the same order (sums left to right along each row, the same LU elimination), as it was the reference
 simulator before the C core became the one definition. Tests run both and require the same
 doubles: the C core is checked against an independent reading of the semantics in
 ``fdid_fmi/simulate.py``'s docstring.
@@ -20,8 +20,9 @@ _TOL = 1e-12
 
 
 def _mv(M, v):
-    """M @ v summed like the C core (numpy's pairwise order: np.add.reduce over each row)."""
-    return np.add.reduce(np.ascontiguousarray(M) * v, axis=1) if M.shape[1] else np.zeros(M.shape[0])
+    """M @ v summed like the C core: left to right along each row (a cumulative sum is sequential;
+    the core skips zero terms, which add exact zeros)."""
+    return np.cumsum(np.asarray(M) * v, axis=1)[:, -1] if M.shape[1] else np.zeros(M.shape[0])
 
 
 def _lu_solve(M, r):
@@ -254,6 +255,7 @@ def _run(plan, cmds, exts, t, v0):
         for jj, i in enumerate(plan.fric):
             beta[j, jj] = D[o, i] / Ts if diff else D[o, i]
     u = np.zeros(nu)
+    AB, CD = np.hstack([A, B]), np.hstack([C, D])      # the step acts on z = [xi; u]
     for k in range(N):
         for a, i in plan.cmd.items():
             u[i] = cmds[a][k] - uref[i]
@@ -264,7 +266,7 @@ def _run(plan, cmds, exts, t, v0):
             u[i] = feature_value(ins[i].params, v_prev[a], cmds[a][k], x_prev[a])
         for i in plan.fric:
             u[i] = 0.0
-        y = _mv(C, xi) + _mv(D, u) + yoff
+        y = _mv(CD, np.concatenate([xi, u])) + yoff
         if nf:
             alpha = np.empty(nf)
             for j, (o, diff) in enumerate(plan.vsrc):
@@ -279,7 +281,7 @@ def _run(plan, cmds, exts, t, v0):
             V[a][k] = v_prev[a]
         Y[k] = y
         U[k] = u
-        xi = _mv(A, xi) + _mv(B, u)
+        xi = _mv(AB, np.concatenate([xi, u]))
     return SimResult(t=np.asarray(t), y=Y, u=U, axes=_axis_view(plan, Y, cmds, V),
                      output_names=[p.name for p in m.outputs])
 

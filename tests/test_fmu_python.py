@@ -36,7 +36,7 @@ def test_python_backend_runs_in_fmpy_like_the_reference(tmp_path):
 
 
 def test_python_and_c_fmus_agree_bit_for_bit_even_in_stick_slip(tmp_path):
-    """Both backends sum in numpy's pairwise order: identical outputs, even on a trace whose
+    """Both backends run the same C core: identical outputs, even on a trace whose
     friction stick-slip amplifies any rounding difference (a 1e-12 mm change of the commands
     moves the result by more than 1e-6 mm)."""
     m = fs.coupled_model(vt_y=0.3)

@@ -30,10 +30,15 @@ class _Input(ct.Structure):
                 ("period_mm", ct.c_double)]
 
 
+class _Rows(ct.Structure):
+    _fields_ = [("start", _I), ("col", _I), ("val", _D)]
+
+
 class _Model(ct.Structure):
     _fields_ = [("model_identifier", ct.c_char_p), ("guid", ct.c_char_p), ("Ts", ct.c_double),
                 ("n", ct.c_int), ("m", ct.c_int), ("p", ct.c_int), ("n_axes", ct.c_int),
                 ("A", _D), ("B", _D), ("C", _D), ("D", _D), ("S", _D), ("S2", _D), ("G1", _D),
+                ("AB_rows", _Rows), ("CD_rows", _Rows),
                 ("inputs", ct.POINTER(_Input)), ("n_fric", ct.c_int),
                 ("fric_input", _I), ("fric_vel_output", _I), ("fric_vel_diff", _I),
                 ("axis_cmd_input", _I), ("axis_pos_output", _I), ("axis_err_output", _I),
@@ -96,7 +101,7 @@ class CompiledModel:
     """
 
     def __init__(self, model):
-        from .fmu.layout import FEATURES, KINDS, build_layout
+        from .fmu.layout import FEATURES, KINDS, build_layout, step_rows
         lay = build_layout(model)
         self.model, self.layout = model, lay
         S, S2, G1 = model.steady_state_maps()
@@ -117,8 +122,12 @@ class CompiledModel:
         dbls = [np.ascontiguousarray(v, dtype=float) for v in (lay.axis_level0, lay.axis_vtilde0)]
         self._keep += [ins, *ints, *dbls]
         A, B, C, D, S_, S2_, G1_ = (_dptr(x) for x in self._keep[:7])
+        csr = [(_iarr(st), _iarr(col), np.ascontiguousarray(val if len(val) else [0.0]))
+               for st, col, val in step_rows(model)]
+        self._keep += csr
+        rows = [_Rows(st.ctypes.data_as(_I), col.ctypes.data_as(_I), _dptr(val)) for st, col, val in csr]
         self.c = _Model(b"kernel", b"", float(model.Ts), model.n_states, len(model.inputs),
-                        len(model.outputs), len(lay.axes), A, B, C, D, S_, S2_, G1_, ins,
+                        len(model.outputs), len(lay.axes), A, B, C, D, S_, S2_, G1_, *rows, ins,
                         len(lay.fric_inputs), *(x.ctypes.data_as(_I) for x in ints),
                         *(_dptr(x) for x in dbls), 0, None)
 

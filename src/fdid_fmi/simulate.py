@@ -34,7 +34,7 @@ Step k, given xi, the inputs (commands, externals) and the axis states of step k
    when L*|beta|/v_tilde >> 1, and without the stick branch an axis at rest creeps through
    the viscous transition band;
 3. y = C xi + D u + G1 u_ref; xi <- A xi + B u.
-Sums are numpy's pairwise order with plain IEEE products (no fused multiply-add).
+Sums run left to right along each matrix row, with plain IEEE products (no fused multiply-add).
 """
 from __future__ import annotations
 

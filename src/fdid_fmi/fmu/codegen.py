@@ -14,7 +14,7 @@ import re
 import numpy as np
 
 from ..errors import InputError
-from .layout import FEATURES, KINDS, ROLES
+from .layout import FEATURES, KINDS, ROLES, step_rows
 
 IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 GUID = re.compile(r"\{[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}\}")
@@ -102,6 +102,9 @@ def model_data_c(layout, guid, model_identifier):
              "#include \"model_data.h\"\n\n"]
     for nm, arr in (("A", m.A), ("B", m.B), ("C", m.C), ("D", m.D), ("S", S), ("S2", S2), ("G1", G1)):
         parts.append(_darray(f"data_{nm}", arr))
+    for nm, (start, col, val) in zip(("AB", "CD"), step_rows(m)):
+        parts += [_iarray(f"data_{nm}_start", start), _iarray(f"data_{nm}_col", col),
+                  _darray(f"data_{nm}_val", val)]
     aidx = {a: i for i, a in enumerate(layout.axes)}
     rows = []
     for p in m.inputs:
@@ -139,6 +142,7 @@ def model_data_c(layout, guid, model_identifier):
         "    FDID_MODEL_IDENTIFIER, FDID_GUID, " + _num(m.Ts) + ",\n"
         f"    {m.n_states}, {len(m.inputs)}, {len(m.outputs)}, {len(layout.axes)},\n"
         "    data_A, data_B, data_C, data_D, data_S, data_S2, data_G1,\n"
+        + "".join(f"    {{data_{nm}_start, data_{nm}_col, data_{nm}_val}},\n" for nm in ("AB", "CD")) +
         "    data_inputs,\n"
         f"    {len(layout.fric_inputs)}, data_fric_input, data_fric_vel_output, data_fric_vel_diff,\n"
         "    data_axis_cmd, data_axis_pos, data_axis_err, data_axis_vel, data_axis_tool,\n"

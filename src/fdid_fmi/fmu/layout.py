@@ -257,6 +257,32 @@ def build_layout(model):
                      axis_tool=tool, axis_level0=level0, axis_vtilde0=vt0, uses_libm=uses_libm)
 
 
+def sparse_rows(X):
+    """The nonzero entries of X by row (the C core's ``FdidRows``, compressed sparse rows).
+
+    Parameters
+    ----------
+    X : (r, c) array
+
+    Returns
+    -------
+    start : (r + 1,) int, row i holds entries start[i] .. start[i + 1] - 1
+    col : (nnz,) int, their columns, ascending within a row
+    val : (nnz,) float, their values
+    """
+    X = np.asarray(X, dtype=float)
+    rows, cols = np.nonzero(X)                 # row-major order: columns ascend within a row
+    start = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=X.shape[0]))])
+    return start.astype(np.intc), cols.astype(np.intc), X[rows, cols]
+
+
+def step_rows(model):
+    """[A B] and [C D] of a DriveModel as :func:`sparse_rows` (the C core's step matrices,
+    acting on z = [xi; u])."""
+    return (sparse_rows(np.hstack([model.A, model.B])),
+            sparse_rows(np.hstack([model.C, model.D])))
+
+
 def _or(i):
     return -1 if i is None else i
 

@@ -31,7 +31,7 @@ static double fdid_abs(double x) { return x < 0.0 ? -x : x; }
 /* ------------------------------------------------------------------ layout */
 size_t fdid_buffer_size(const FdidModel *M) {
     size_t n = (size_t)M->n, m = (size_t)M->m, p = (size_t)M->p, a = (size_t)M->n_axes;
-    /* xi, x_prev, v_prev, cmd, ext, uref, yoff, u, y, vel, level, vtilde, on, v0, work_n, work_m */
+    /* xi, u, x_prev, v_prev, cmd, ext, uref, yoff, y, vel, level, vtilde, on, v0, work_n, work_m */
     return n + a + a + a + m + m + p + m + p + a + a + a + a + a + n + m;
 }
 
@@ -42,13 +42,13 @@ void fdid_state_bind(FdidState *S, const FdidModel *M, double *buf) {
     S->buf = buf;
     S->nbuf = fdid_buffer_size(M);
     S->xi = q; q += n;
+    S->u = q; q += m;     /* right after xi: the step multiplies z = [xi; u] */
     S->x_prev = q; q += a;
     S->v_prev = q; q += a;
     S->cmd = q; q += a;
     S->ext = q; q += m;
     S->uref = q; q += m;
     S->yoff = q; q += p;
-    S->u = q; q += m;
     S->y = q; q += p;
     S->vel = q; q += a;
     S->level = q; q += a;
@@ -78,13 +78,11 @@ void fdid_state_defaults(FdidState *S) {
 }
 
 /* -------------------------------------------------------------- building blocks */
-/* sum_j a[j] b[j] in numpy's pairwise order (np.add.reduce(a * b)): sequential below 8 terms,
- * 8 partial sums up to 128, halves above. Products and sums are plain IEEE operations (no FMA:
- * -std=c99 implies -ffp-contract=off), so the result is bit-identical to numpy's.
- * The short rows of a drive model (below 16 terms) are summed inline: a call per row cost
- * more than its arithmetic (1.4x the samples/s of the 9-state axis, benchmarks/bench_simulate). */
-static double fdid_dot_long(const double *a, const double *b, int n);
-
+/* Every matrix-vector product sums its terms left to right (res = 0; res += a_j b_j for
+ * j = 0, 1, ...), with plain IEEE products (no FMA: -std=c99 implies -ffp-contract=off).
+ * A term whose coefficient is zero adds an exact zero, so the per-step products run over the
+ * nonzero terms only (FdidRows) and give the same doubles as the dense sum: the realisations
+ * of drive models are sparse (a 9-state axis: 20 of 81 entries of A). */
 #if defined(__GNUC__)
 #define FDID_INLINE static inline __attribute__((always_inline))
 #else
@@ -93,38 +91,18 @@ static double fdid_dot_long(const double *a, const double *b, int n);
 
 FDID_INLINE double fdid_dot(const double *a, const double *b, int n) {
     int i;
-    double res;
-    if (n < 8) {
-        res = 0.0;
-        for (i = 0; i < n; i++) res += a[i] * b[i];
-        return res;
-    }
-    if (n < 16) {   /* one product per partial sum */
-        res = ((a[0] * b[0] + a[1] * b[1]) + (a[2] * b[2] + a[3] * b[3])) +
-              ((a[4] * b[4] + a[5] * b[5]) + (a[6] * b[6] + a[7] * b[7]));
-        for (i = 8; i < n; i++) res += a[i] * b[i];
-        return res;
-    }
-    return fdid_dot_long(a, b, n);
+    double res = 0.0;
+    for (i = 0; i < n; i++) res += a[i] * b[i];
+    return res;
 }
 
-static double fdid_dot_long(const double *a, const double *b, int n) {
-    int i;
-    if (n <= 128) {
-        double r[8], res;
-        int j;
-        for (j = 0; j < 8; j++) r[j] = a[j] * b[j];
-        for (i = 8; i < n - (n % 8); i += 8)
-            for (j = 0; j < 8; j++) r[j] += a[i + j] * b[i + j];
-        res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
-        for (; i < n; i++) res += a[i] * b[i];
-        return res;
-    }
-    {
-        int n2 = n / 2;
-        n2 -= n2 % 8;
-        return fdid_dot_long(a, b, n2) + fdid_dot_long(a + n2, b + n2, n - n2);
-    }
+/* row i of a sparse matrix times v (the step's matrices act on z = [xi; u], which are adjacent
+ * in the state buffer) */
+FDID_INLINE double fdid_row_dot(const FdidRows *X, int i, const double *v) {
+    int k, end = X->start[i + 1];
+    double res = 0.0;
+    for (k = X->start[i]; k < end; k++) res += X->val[k] * v[X->col[k]];
+    return res;
 }
 
 /* out = X v (X row-major r x c) */
@@ -321,12 +299,10 @@ void fdid_initialize(FdidState *S) {
 
 /* ------------------------------------------------------------------ one step */
 /* outputs at the current time from the current inputs (simulate._run, loop body, 1.-3.) */
-void fdid_outputs(FdidState *S) {
+FDID_INLINE void compute_outputs(FdidState *S) {
     const FdidModel *M = S->M;
-    int n = M->n, m = M->m, p = M->p, nf = M->n_fric, i, j, a, o;
+    int m = M->m, p = M->p, nf = M->n_fric, i, j, a, o;
     double *u = S->u, *y = S->y;
-    if (S->f.init_dirty) fdid_initialize(S);
-    if (!S->f.out_dirty) return;
     for (a = 0; a < M->n_axes; a++) {
         int ci = M->axis_cmd_input[a];
         u[ci] = S->cmd[a] - S->uref[ci];
@@ -338,12 +314,8 @@ void fdid_outputs(FdidState *S) {
             u[i] = feature_value(in, S->v_prev[in->axis], S->cmd[in->axis], S->x_prev[in->axis]);
         else if (in->kind == FDID_IN_FRICTION) u[i] = 0.0;
     }
-    /* y = C xi + D u + yoff */
-    for (o = 0; o < p; o++) {
-        double c = fdid_dot(M->C + (size_t)o * (size_t)n, S->xi, n);
-        double dd = fdid_dot(M->D + (size_t)o * (size_t)m, u, m);
-        y[o] = (c + dd) + S->yoff[o];
-    }
+    /* y = [C D] [xi; u] + yoff (the friction inputs are still 0 here) */
+    for (o = 0; o < p; o++) y[o] = fdid_row_dot(&M->CD_rows, o, S->xi) + S->yoff[o];
     if (nf > 0) {
         double alpha[FDID_MAX_FRICTION], beta[FDID_MAX_FRICTION * FDID_MAX_FRICTION];
         double lev[FDID_MAX_FRICTION], vt[FDID_MAX_FRICTION], d[FDID_MAX_FRICTION];
@@ -370,25 +342,33 @@ void fdid_outputs(FdidState *S) {
         int vo = M->axis_vel_output[a], po = M->axis_pos_output[a];
         S->vel[a] = vo >= 0 ? y[vo] : (y[po] - S->x_prev[a]) / M->Ts;
     }
+}
+
+/* memory and state update after the outputs of the current time */
+FDID_INLINE void update_state(FdidState *S) {
+    const FdidModel *M = S->M;
+    int n = M->n, i, a;
+    for (a = 0; a < M->n_axes; a++) {
+        S->v_prev[a] = S->vel[a];
+        S->x_prev[a] = S->y[M->axis_pos_output[a]];
+    }
+    /* xi <- [A B] [xi; u] (into the scratch vector first: every row needs the old xi) */
+    for (i = 0; i < n; i++) S->work_n[i] = fdid_row_dot(&M->AB_rows, i, S->xi);
+    for (i = 0; i < n; i++) S->xi[i] = S->work_n[i];
+    S->f.steps += 1;
+}
+
+void fdid_outputs(FdidState *S) {
+    if (S->f.init_dirty) fdid_initialize(S);
+    if (!S->f.out_dirty) return;
+    compute_outputs(S);
     S->f.out_dirty = 0;
 }
 
 /* one internal step: outputs of the current time, then memory and state update */
 void fdid_advance(FdidState *S) {
-    const FdidModel *M = S->M;
-    int n = M->n, m = M->m, i, a;
     fdid_outputs(S);
-    for (a = 0; a < M->n_axes; a++) {
-        S->v_prev[a] = S->vel[a];
-        S->x_prev[a] = S->y[M->axis_pos_output[a]];
-    }
-    /* xi <- A xi + B u (new state in the scratch vector first: every row needs the old xi) */
-    for (i = 0; i < n; i++) {
-        S->work_n[i] = fdid_dot(M->A + (size_t)i * (size_t)n, S->xi, n) +
-                       fdid_dot(M->B + (size_t)i * (size_t)m, S->u, m);
-    }
-    for (i = 0; i < n; i++) S->xi[i] = S->work_n[i];
-    S->f.steps += 1;
+    update_state(S);
     S->f.out_dirty = 1;
 }
 
@@ -435,14 +415,14 @@ void fdid_run(FdidState *S, long long N, const double *cmd, const double *ext, d
         for (a = 0; a < na; a++) S->cmd[a] = cmd[k * na + a];
         for (i = 0; i < m; i++)
             if (M->inputs[i].kind == FDID_IN_EXTERNAL) S->ext[i] = ext[k * m + i];
-        if (k == 0) S->f.init_dirty = 1;
-        S->f.out_dirty = 1;
-        fdid_outputs(S);
+        if (k == 0) fdid_initialize(S);
+        compute_outputs(S);
         for (i = 0; i < p; i++) Y[k * p + i] = S->y[i];
         for (i = 0; i < m; i++) U[k * m + i] = S->u[i];
         for (a = 0; a < na; a++) V[k * na + a] = S->vel[a];
-        fdid_advance(S);
+        update_state(S);
     }
+    S->f.out_dirty = 1;
 }
 
 size_t fdid_sizeof_state(void) { return sizeof(FdidState); }

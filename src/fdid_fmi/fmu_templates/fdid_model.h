@@ -14,8 +14,11 @@
  *   step k      feature inputs from the previous step's velocity / position; friction inputs
  *               d = L sat(v / v_tilde) solved exactly with stiction (v = alpha + beta d is
  *               affine in d: branches stick (v = 0, |d| <= L) / linear / +1 / -1 per friction
- *               input, in that order, the first consistent one wins); y = C xi + D u + G1 u_ref;
- *               xi <- A xi + B u. Position-type outputs have no D from commands (causal).
+ *               input, in that order, the first consistent one wins); with z = [xi; u],
+ *               y = [C D] z + G1 u_ref (the friction part of D u added after the solve) and
+ *               xi <- [A B] z. Position-type outputs have no D from commands (causal).
+ *   sums        each matrix-vector product left to right along the row, plain IEEE products
+ *               (no fused multiply-add).
  * The velocity of an axis is its model velocity output, or the backward difference
  * (x[k] - x[k-1]) / Ts of its position output when the model has none.
  *
@@ -69,6 +72,14 @@ typedef struct {
     const char *name;
 } FdidVar;
 
+/* A matrix's nonzero entries by row (compressed sparse rows): row i holds val[k] at column
+ * col[k] for start[i] <= k < start[i + 1], columns ascending (fmu/layout.py: sparse_rows). */
+typedef struct {
+    const int *start;                 /* rows + 1 */
+    const int *col;
+    const double *val;
+} FdidRows;
+
 typedef struct {
     const char *model_identifier;
     const char *guid;
@@ -76,6 +87,7 @@ typedef struct {
     int n, m, p, n_axes;              /* states, model inputs, model outputs, axes */
     const double *A, *B, *C, *D;      /* row-major n*n, n*m, p*n, p*m */
     const double *S, *S2, *G1;        /* steady-state maps n*m, n*m, p*m */
+    FdidRows AB_rows, CD_rows;        /* [A B] n*(n+m), [C D] p*(n+m) for the step */
     const FdidInput *inputs;          /* m */
     int n_fric;                       /* friction inputs, <= FDID_MAX_FRICTION */
     const int *fric_input;            /* model input index of each friction input */
