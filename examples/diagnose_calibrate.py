@@ -33,7 +33,7 @@ from fdid_fmi.diagnose import DETECTORS  # noqa: E402
 from fdid_fmi.diagnose import augment as ag  # noqa: E402
 from fdid_fmi.diagnose.base import Context  # noqa: E402
 from fdid_fmi.diagnose.residuals import residuals  # noqa: E402
-from fdid_fmi.diagnose.scenarios import INTEGRAL_ACTION, scenario  # noqa: E402
+from fdid_fmi.diagnose.scenarios import INTEGRAL_ACTION, _measured_only, scenario  # noqa: E402
 from fdid_fmi.identify import identify_siso  # noqa: E402
 
 MARGIN = 1.2
@@ -55,10 +55,13 @@ def statistics(m, tr):
     return out
 
 
-def virtual_run(name, seeds, expected):
+def virtual_run(name, seeds, expected, motor_only=False):
     tr, _ = scenario(name, seeds=seeds)
+    if motor_only:          # the tool-side channel dropped: what a motor encoder alone shows
+        tr = _measured_only(tr, ("cmd", "act", "vel"))
     m = identify_siso(tr, axis="x", maxiter=30, integral_action=INTEGRAL_ACTION.get(name, True))
-    return {"plant": "virtual", "scenario": name, "seed": seeds[0], "expected": expected, "stats": statistics(m, tr)}
+    return {"plant": "virtual", "scenario": name + (" (motor only)" if motor_only else ""), "seed": seeds[0],
+            "expected": expected, "stats": statistics(m, tr)}
 
 
 def plant2_run(p2, name, seed):
@@ -116,6 +119,9 @@ def main():
     if args.effects:
         for name, kind in VIRTUAL_EFFECTS.items():
             runs.append(virtual_run(name, (1, 2), kind))
+            show(runs[-1])
+        for seeds in ((1, 2), (3, 4), (5, 6)):     # diagnose/limits.py: lost motion at the motor?
+            runs.append(virtual_run("backlash", seeds, "backlash", motor_only=True))
             show(runs[-1])
     if args.plant2:
         sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))

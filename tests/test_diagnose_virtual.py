@@ -11,6 +11,7 @@ import warnings
 import pytest
 
 from fdid_fmi.diagnose import diagnose
+from fdid_fmi.diagnose.limits import NoteKind
 from fdid_fmi.diagnose.scenarios import INTEGRAL_ACTION, scenario
 from fdid_fmi.identify import identify_siso
 
@@ -37,6 +38,9 @@ def test_clean_data_gets_nothing(name):
     assert d.final is d.model
     j = d.to_json()
     assert j["effects_added"] == [] and j["before"] == j["after"]
+    # no tool-side channel: backlash is reported as not checked, and nothing is suspected
+    assert [(n.kind, n.effect) for n in d.notes] == [(NoteKind.NOT_OBSERVABLE, "backlash")]
+    assert j["notes"][0]["kind"] == "not_observable"
 
 
 def test_stribeck():
@@ -61,6 +65,7 @@ def test_backlash_on_the_tool_side():
     assert d.after["val"]["x"]["rms_um"] <= 1.01 * d.before["val"]["x"]["rms_um"]
     # the model now has a tool-side output fed by the backlash input
     assert d.final.output_index("tool_position", "x") is not None
+    assert d.notes == []                                       # the tool side was recorded
 
 
 def test_position_periodic_force():

@@ -128,6 +128,8 @@ def run(args):
             print(line)
     if fmu and "error" in fmu:
         print(f"  FMU check: {fmu['error']}")
+    for note in diag.notes:
+        print(f"note ({note.kind.value}): {note.text}")
     if args.output:
         diag.final.save(args.output)
         print(f"augmented model written to {args.output}")

@@ -35,6 +35,7 @@ from ..model import DriveModel
 from . import augment as ag
 from . import coupling, delay, friction, mode, periodic, whiteness
 from .base import Context, command_velocity, implausible
+from .limits import data_limits
 from .residuals import Residuals, residuals, split_halves
 
 DETECTORS = {"friction": friction, "mode": mode, "delay": delay, "periodic": periodic,
@@ -74,6 +75,7 @@ class Diagnosis:
     wall_time_s: float = 0.0
     split: str = ""
     axes: dict = field(default_factory=dict)        # combined model: axis -> Diagnosis of its block
+    notes: list = field(default_factory=list)       # limits.Note: not observable / suspected
 
     @property
     def effects_added(self):
@@ -91,6 +93,7 @@ class Diagnosis:
             "tests": {"before": self.tests_before, "after": self.tests_after},
             "criterion": {"min_gain": self.settings.get("min_gain"), "max_loss": self.settings.get("max_loss")},
             "split": self.split, "wall_time_s": self.wall_time_s,
+            "notes": [n.to_dict() for n in self.notes],
         }
         if self.axes:       # combined per-axis model: the findings of every axis
             out["per_axis"] = {a: {"effects_added": d.effects_added, "before": _per_axis(d.before),
@@ -288,6 +291,7 @@ def _combined(model, blocks, train, val, split, kw, say, t0):
             res[tname] = r
         setattr(diag, attr, res)
     for ax, d in subs.items():
+        diag.notes.extend(d.notes)
         diag.steps.extend(d.steps)
         diag.rounds.extend({**r, "axis": ax} for r in d.rounds)
     diag.wall_time_s = time.perf_counter() - t0
@@ -430,5 +434,8 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     diag.after = {k: r.table() for k, r in res_cur.items()}
     diag.residual_after = res_cur
     diag.tests_after = {k: _tests(r) for k, r in res_cur.items()}
+    tool_axes = {a for a, ar in res0["train"].axes.items() if ar.tool_residual is not None}
+    diag.notes = data_limits(model.axes, tool_axes, diag.rounds[0]["candidates"] if diag.rounds else [],
+                             diag.effects_added)
     diag.wall_time_s = time.perf_counter() - t0
     return diag

@@ -148,6 +148,8 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
     summary = ("Effects added: " + ("; ".join(f"{e['kind']} ({_fmt_params(e)})" for e in eff)
                                     if eff else "none (no candidate met the keep criterion)") + ".")
     rep.add_text(summary, heading="Summary")
+    for note in diag.notes:     # what the data cannot show or only suggest (limits.py)
+        rep.add_text(f"Note ({note.kind.value.replace('_', ' ')}): {note.text}.")
     if diag.axes:       # combined per-axis model: what each axis's block showed
         rep.add_table("per_axis", per_axis_rows(diag),
                       caption="combined per-axis model: every block diagnosed on its own axis")

@@ -1,0 +1,95 @@
+"""What the data cannot show, or only suggest: notes the diagnosis reports without adding an effect.
+
+An effect is added only when a refit with it predicts held-out data better (:mod:`.loop`). Some
+effects cannot get there from the data given, and the user should hear so instead of silence:
+
+``not_observable``  lost motion (backlash) between motor and table when the trace has no
+                    tool-side channel for the axis: a motor encoder measures the motor, and the
+                    table's lost motion need not reach it (on the virtual drive it does not: the
+                    motor-side concentration statistic below is 1.3-1.6 with 20 µm backlash,
+                    inside its clean range). Record a tool-side position (grid encoder) or
+                    acceleration to check it (``fdid align``).
+``suspected``       the motor-side residual is concentrated after motion starts / stops far beyond
+                    any clean run of either plant (the Stribeck detector's statistic, see
+                    :mod:`.friction`) and neither a Stribeck term nor a backlash was kept: lost
+                    motion (or another reversal effect the friction model lacks) is suspected, and
+                    without a tool-side channel it cannot be identified.
+
+Threshold of ``suspected`` (``REVERSAL_SUSPECT``), calibrated on the second plant and measured on
+the virtual drive (``examples/diagnose_calibrate.py --effects --plant2`` gives the statistics,
+pole-search models of each training trace): plant2's LuGre friction leaves the most reversal
+residual on clean data, 6.55-17.7 over its 9 clean runs, so 1.2 x 17.7 = 21.2. There, its
+Stribeck run gives 13.1 (no note) and its 15 µm backlash with the motor encoder only 51.9 (note).
+On the virtual drive (not used to set it): clean runs reach 2.17 and its Stribeck run 3.27 (no
+note either); its backlash does not reach the motor side (1.3-1.6), which the ``not_observable``
+note covers.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from enum import Enum
+
+REVERSAL_SUSPECT = 21.2
+
+
+class NoteKind(str, Enum):
+    NOT_OBSERVABLE = "not_observable"
+    SUSPECTED = "suspected"
+
+
+@dataclass
+class Note:
+    """A finding reported without adding an effect.
+
+    kind : :class:`NoteKind`; axis : the axis it concerns; effect : the effect kind it is about
+    (as in ``effects_added``); text : one sentence for the user; statistic, threshold : the
+    evidence, when a statistic decided it.
+    """
+
+    kind: NoteKind
+    axis: str
+    effect: str
+    text: str
+    statistic: float | None = None
+    threshold: float | None = None
+
+    def to_dict(self):
+        d = asdict(self)
+        d["kind"] = self.kind.value
+        return d
+
+
+def data_limits(axes, tool_axes, first_round, kept):
+    """Notes on what the data of a diagnosis cannot show or only suggest.
+
+    Parameters
+    ----------
+    axes : axes diagnosed
+    tool_axes : axes whose training trace has a tool-side channel
+    first_round : candidate summaries of the first round (``Candidate.summary()``), i.e. the
+        statistics of the model as given
+    kept : effect dicts that were kept (``Diagnosis.effects_added``)
+
+    Returns
+    -------
+    list of :class:`Note`
+    """
+    notes = []
+    for a in axes:
+        if a in tool_axes:
+            continue
+        kept_here = {e.get("kind") for e in kept if e.get("axis") == a}
+        conc = max((c["statistic"] for c in first_round if c["kind"] == "stribeck" and c["axis"] == a),
+                   default=None)
+        if conc is not None and conc >= REVERSAL_SUSPECT and not kept_here & {"stribeck", "backlash"}:
+            notes.append(Note(NoteKind.SUSPECTED, a, "backlash",
+                              f"axis {a}: residual after motion starts/stops {conc:.3g}x the rest "
+                              f"(clean runs of both plants stay below {REVERSAL_SUSPECT:g}) and no "
+                              "Stribeck term explains it: lost motion (backlash) is suspected; it is "
+                              "not identifiable from motor-side data: record a tool-side position "
+                              "or acceleration", conc, REVERSAL_SUSPECT))
+        else:
+            notes.append(Note(NoteKind.NOT_OBSERVABLE, a, "backlash",
+                              f"axis {a}: lost motion (backlash) between motor and table was not "
+                              "checked: the trace has no tool-side channel for this axis"))
+    return notes

@@ -1,0 +1,54 @@
+"""What the diagnosis reports without adding an effect (``fdid_fmi.diagnose.limits``).
+
+The ``suspected`` threshold was calibrated on the second plant's clean runs; the virtual drive's
+clean runs (``test_diagnose_virtual``) check it on the plant it was not set on.
+"""
+import warnings
+
+import pytest
+
+from fdid_fmi.diagnose import diagnose
+from fdid_fmi.diagnose.limits import REVERSAL_SUSPECT, NoteKind, data_limits
+from fdid_fmi.identify import identify_siso
+from plant2 import scenarios as p2
+
+
+def _stribeck(axis, statistic):
+    return {"kind": "stribeck", "axis": axis, "statistic": statistic, "threshold": 2.6}
+
+
+def test_rules():
+    conc = [_stribeck("x", 2 * REVERSAL_SUSPECT), _stribeck("y", 0.5 * REVERSAL_SUSPECT)]
+    notes = data_limits(["x", "y"], set(), conc, [])
+    assert [(n.kind, n.axis) for n in notes] == [(NoteKind.SUSPECTED, "x"), (NoteKind.NOT_OBSERVABLE, "y")]
+    assert notes[0].statistic == 2 * REVERSAL_SUSPECT and "tool-side" in notes[0].text
+    # a kept Stribeck term explains the concentration; a tool channel lets the detector decide
+    assert data_limits(["x"], set(), conc, [{"kind": "stribeck", "axis": "x"}])[0].kind == NoteKind.NOT_OBSERVABLE
+    assert data_limits(["x"], {"x"}, conc, []) == []
+    assert data_limits(["x"], set(), [], [])[0].kind == NoteKind.NOT_OBSERVABLE   # friction detector not run
+
+
+def test_backlash_with_the_motor_encoder_only_is_suspected_not_added():
+    """plant2, 15 µm backlash, motor encoder only: no refit can identify it (nothing is added),
+    and the note says what is suspected and what to record (measured statistic 51.9)."""
+    train, vals, truth = p2.scenario("backlash_motor")
+    va = next(v for v in vals if v.meta["name"] == "reversals")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = identify_siso(train[0], truth["axis"], maxiter=30, seed=0)
+        d = diagnose(m, train[0], va, maxiter=20)
+    assert d.effects_added == []
+    (note,) = d.notes
+    assert (note.kind, note.axis, note.effect) == (NoteKind.SUSPECTED, "x", "backlash")
+    assert note.statistic >= 2 * REVERSAL_SUSPECT
+    assert d.to_json()["notes"][0]["kind"] == "suspected"
+
+
+@pytest.mark.parametrize("name", ["clean_rigid"])
+def test_clean_plant2_run_is_not_suspected(name):
+    train, _, truth = p2.scenario(name, seed=3)           # a seed the calibration did not use
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = identify_siso(train[0], truth["axis"], maxiter=30, seed=0)
+        d = diagnose(m, train[0], maxiter=20, max_steps=1)
+    assert [n.kind for n in d.notes] == [NoteKind.NOT_OBSERVABLE]
