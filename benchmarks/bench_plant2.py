@@ -45,6 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fdid_fmi.diagnose import DETECTORS, diagnose  # noqa: E402
 from fdid_fmi.diagnose import augment as ag  # noqa: E402
 from fdid_fmi.diagnose.base import Context  # noqa: E402
+from fdid_fmi.diagnose.limits import NoteKind  # noqa: E402
 from fdid_fmi.diagnose.residuals import residuals  # noqa: E402
 from fdid_fmi.identify import (identify_full_ls, identify_quasi_static, identify_siso)  # noqa: E402
 from fdid_fmi.identify.choose_structure import choose, fit_structures  # noqa: E402
@@ -198,7 +199,10 @@ def diagnosis(name):
     out["after_val"] = d.after["val"]
     out["first_round"] = _max_by_kind(d.rounds[0]["candidates"]) if d.rounds else {}
     kinds = [e["kind"] for e in d.effects_added]
-    out["correct"] = (kinds == [] if truth["effect"] is None else truth["effect"] in kinds)
+    out["suspected"] = [n.effect for n in d.notes if n.kind == NoteKind.SUSPECTED]
+    # an effect the data cannot identify counts when the diagnosis says it is suspected
+    out["correct"] = (kinds == [] and not out["suspected"] if truth["effect"] is None
+                      else truth["effect"] in kinds + out["suspected"])
     print(f"  named {kinds}  ({t:.0f} s)", flush=True)
     return out
 
@@ -295,6 +299,8 @@ def print_tables(res):
             named = "; ".join(e["kind"] + " (" + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
                                                            for k, v in e.items() if k != "kind") + ")"
                               for e in d["named"]) or "none"
+            if d.get("suspected"):
+                named += " (suspected, not identifiable: " + ", ".join(d["suspected"]) + ")"
             chans = " ".join(f"{ch}: {d['before_val'][ch]['rms_um']:.3g} → {d['after_val'][ch]['rms_um']:.3g}"
                              for ch in d["before_val"])
             print(f"| {d['scenario']} | {d['truth'] or 'none'} {d['truth_params'] or ''} | {named} | {chans} | "

@@ -238,6 +238,41 @@ def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, r
     return model
 
 
+def keep_base_outputs(base: DriveModel, fitted: DriveModel) -> DriveModel:
+    """``fitted`` with every output it shares with ``base`` (by name) predicted exactly as ``base``
+    predicts it.
+
+    A ``locked`` refit keeps the poles and adds inputs and outputs (a tool-side output fed by a
+    backlash input); its LS also refits the numerators of the outputs it did not add, from the
+    model's free-run velocity and without the engine's refinement, which moved plant2's motor
+    side 11-14 % (held out) although the effect concerns the tool side only. The result is the
+    parallel composition: states [base; fitted], the shared outputs from base's states, the
+    added ones from fitted's (exact; a few more states). ``fitted`` is returned as it is when
+    base's inputs are not the leading inputs of fitted.
+    """
+    k = len(base.inputs)
+    if [(p.name, p.kind, p.params) for p in fitted.inputs[:k]] != [(p.name, p.kind, p.params) for p in base.inputs]:
+        return fitted
+    nb, nf, m = base.n_states, fitted.n_states, len(fitted.inputs)
+    A = np.zeros((nb + nf, nb + nf))
+    A[:nb, :nb], A[nb:, nb:] = base.A, fitted.A
+    B = np.zeros((nb + nf, m))
+    B[:nb, :k], B[nb:] = base.B, fitted.B
+    C = np.hstack([np.zeros((len(fitted.outputs), nb)), fitted.C])
+    D = np.array(fitted.D, float)
+    rows = {p.name: i for i, p in enumerate(base.outputs)}
+    for j, p in enumerate(fitted.outputs):
+        i = rows.get(p.name)
+        if i is not None:
+            C[j] = 0.0
+            C[j, :nb] = base.C[i]
+            D[j] = 0.0
+            D[j, :k] = base.D[i]
+    out = copy.deepcopy(fitted)
+    out.A, out.B, out.C, out.D = A, B, C, D
+    return out
+
+
 def other_same_sample(recipe: Recipe) -> Recipe:
     """The recipe with the other kind of causal same-sample prediction: hold for a look-ahead form
     (quadratic, cubic), quadratic for hold."""

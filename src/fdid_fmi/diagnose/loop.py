@@ -6,7 +6,9 @@ Each round:
 2. every detector proposes candidates; those whose statistic passes its calibrated threshold
    are refitted on the training data (:func:`.augment.fit`, poles in a local window, or the
    engine's default space for a dead time); the same refit without any new effect (the "null
-   refit") is the reference, so a better pole fit is never credited to an effect;
+   refit") is the reference, so a better pole fit is never credited to an effect (a ``locked``
+   refit keeps the current poles and the current predictions of the channels it does not add,
+   and is measured against the current model);
 3. candidates are tried in order of their training improvement; the first one that meets the
    KEEP CRITERION on the held-out trace is kept, and the next round starts from it.
 
@@ -392,12 +394,19 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
             except InputError as exc:
                 rnd["trials"].append({"kind": c.kind, "params": c.params, "error": str(exc)})
                 continue
+            if c.search == "locked":        # what the effect does not concern stays as it was
+                m = ag.keep_base_outputs(current, m)
             rt, rv = residuals(m, train), residuals(m, val)
             tt, tv = rt.table(), rv.table()
-            rtr, rva = ref_train, ref_val
+            # a locked refit keeps the current poles and, by keep_base_outputs, the current model's
+            # predictions of the channels it does not add: its reference is the current model, not
+            # the null refit's new poles, which it cannot have
+            rtr, rva = (tab_cur["train"], tab_cur["val"]) if c.search == "locked" else (ref_train, ref_val)
             if c.reference is not None:     # the effect must also beat its reference structure
                 mr = ag.fit(c.reference, vel_train, search=c.search, maxiter=maxiter,
                                refine=c.search != "locked")
+                if c.search == "locked":
+                    mr = ag.keep_base_outputs(current, mr)
                 t2, v2 = residuals(mr, train).table(), residuals(mr, val).table()
                 rtr = {ch: min(rtr[ch], t2[ch], key=lambda v: v["rms_um"]) for ch in rtr}
                 rva = {ch: min(rva[ch], v2[ch], key=lambda v: v["rms_um"]) for ch in rva}
