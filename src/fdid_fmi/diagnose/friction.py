@@ -18,8 +18,9 @@ Backlash / lost motion (needs a tool-side channel)
     Statistic: |t| of the direction-aligned mean tool-side residual while moving, over moves:
     m_e = s_e * mean(r_tool over move e); lost motion b shows as m_e = -b/2 on every move.
     Parameter: b = 2 |mean(m_e)| (mm). The refit keeps the poles (``locked``): a tool-side output
-    is added with its own numerators (the motor-side fit is unchanged) and must beat the same
-    tool-side output without the backlash input (``reference``).
+    is added with its own numerators, the motor side keeps its predictions exactly
+    (``augment.keep_base_outputs``), and it must beat the same tool-side output without the
+    backlash input (``reference``).
 
 Thresholds (calibration: ``examples/diagnose_calibrate.py``, 15 clean virtual-drive runs --
 gentle and fast moves, a softer velocity loop, two uncoupled axes, a P loop, 3 seeds each): the largest

@@ -1,7 +1,9 @@
-"""What the diagnosis reports without adding an effect (``fdid_fmi.diagnose.limits``).
+"""Diagnosis on the second plant (``tests/plant2``): backlash with and without the tool-side
+channel, and the notes on what the data cannot show or only suggest (``diagnose.limits``).
 
-The ``suspected`` threshold was calibrated on the second plant's clean runs; the virtual drive's
-clean runs (``test_diagnose_virtual``) check it on the plant it was not set on.
+The backlash gate was set on the virtual drive and is measured here; the ``suspected`` threshold
+was set on this plant's clean runs, and the virtual drive's clean runs
+(``test_diagnose_virtual``) check it on the plant it was not set on.
 """
 import warnings
 
@@ -11,6 +13,17 @@ from fdid_fmi.diagnose import diagnose
 from fdid_fmi.diagnose.limits import REVERSAL_SUSPECT, NoteKind, data_limits
 from fdid_fmi.identify import identify_siso
 from plant2 import scenarios as p2
+
+
+def _diagnose(name, seed=0, held_out=True, **kw):
+    """plant2 scenario: the SISO pole search on its training trace, diagnosed (held out: its
+    reversals trace, or the second half of the training trace)."""
+    train, vals, truth = p2.scenario(name, seed=seed)
+    va = next(v for v in vals if v.meta["name"] == "reversals") if held_out else None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = identify_siso(train[0], truth["axis"], maxiter=30, seed=0)
+        return diagnose(m, train[0], va, maxiter=20, **kw)
 
 
 def _stribeck(axis, statistic):
@@ -31,12 +44,7 @@ def test_rules():
 def test_backlash_with_the_motor_encoder_only_is_suspected_not_added():
     """plant2, 15 µm backlash, motor encoder only: no refit can identify it (nothing is added),
     and the note says what is suspected and what to record (measured statistic 51.9)."""
-    train, vals, truth = p2.scenario("backlash_motor")
-    va = next(v for v in vals if v.meta["name"] == "reversals")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        m = identify_siso(train[0], truth["axis"], maxiter=30, seed=0)
-        d = diagnose(m, train[0], va, maxiter=20)
+    d = _diagnose("backlash_motor")
     assert d.effects_added == []
     (note,) = d.notes
     assert (note.kind, note.axis, note.effect) == (NoteKind.SUSPECTED, "x", "backlash")
@@ -46,11 +54,7 @@ def test_backlash_with_the_motor_encoder_only_is_suspected_not_added():
 
 @pytest.mark.parametrize("name", ["clean_rigid"])
 def test_clean_plant2_run_is_not_suspected(name):
-    train, _, truth = p2.scenario(name, seed=3)           # a seed the calibration did not use
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        m = identify_siso(train[0], truth["axis"], maxiter=30, seed=0)
-        d = diagnose(m, train[0], maxiter=20, max_steps=1)
+    d = _diagnose(name, seed=3, held_out=False, max_steps=1)    # a seed the calibration did not use
     assert [n.kind for n in d.notes] == [NoteKind.NOT_OBSERVABLE]
 
 
@@ -59,12 +63,7 @@ def test_backlash_with_the_tool_channel_on_plant2():
     drive): named, its size within 15 %, the tool side better held out, the motor side exactly
     as before (a locked refit keeps the predictions of what it does not concern: measured 16.5 µm,
     tool side 8.04 -> 5.75 µm RMS on the reversals trace)."""
-    train, vals, truth = p2.scenario("backlash_tool")
-    va = next(v for v in vals if v.meta["name"] == "reversals")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        m = identify_siso(train[0], truth["axis"], maxiter=30, seed=0)
-        d = diagnose(m, train[0], va, maxiter=20)
+    d = _diagnose("backlash_tool")
     assert [e["kind"] for e in d.effects_added] == ["backlash"]
     assert d.effects_added[0]["backlash_mm"] == pytest.approx(0.015, rel=0.15)
     assert d.after["val"]["x.tool"]["rms_um"] <= 0.8 * d.before["val"]["x.tool"]["rms_um"]
