@@ -444,7 +444,8 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     diag.residual_after = res_cur
     diag.tests_after = {k: _tests(r) for k, r in res_cur.items()}
     tool_axes = {a for a, ar in res0["train"].axes.items() if ar.tool_residual is not None}
-    diag.notes = data_limits(model.axes, tool_axes, diag.rounds[0]["candidates"] if diag.rounds else [],
+    # the last round's statistics are those of the final model (unless max_steps ended the loop)
+    diag.notes = data_limits(model.axes, tool_axes, diag.rounds[-1]["candidates"] if diag.rounds else [],
                              diag.effects_added)
     diag.wall_time_s = time.perf_counter() - t0
     return diag
