@@ -75,6 +75,9 @@ def test_identify_then_diagnose_two_axes_cli(two_axis, capsys):
     assert "coupling" in per["x"]["detected"]
     assert "coupling" not in per["y"]["detected"]
     assert "axis x: detected" in text and "axis y: detected" in text
+    # no tool-side channels: each axis says backlash was not checked (console and JSON)
+    assert [(n["axis"], n["kind"]) for n in d["notes"]] == [("x", "not_observable"), ("y", "not_observable")]
+    assert "note (not_observable): axis y: lost motion" in text
 
 
 def test_combined_diagnosis_keeps_per_axis_effect(two_axis):
