@@ -37,7 +37,7 @@ class _Rows(ct.Structure):
 class _Model(ct.Structure):
     _fields_ = [("model_identifier", ct.c_char_p), ("guid", ct.c_char_p), ("Ts", ct.c_double),
                 ("n", ct.c_int), ("m", ct.c_int), ("p", ct.c_int), ("n_axes", ct.c_int),
-                ("A", _D), ("B", _D), ("C", _D), ("D", _D), ("S", _D), ("S2", _D), ("G1", _D),
+                ("C", _D), ("D", _D), ("S", _D), ("S2", _D), ("G1", _D),
                 ("AB_rows", _Rows), ("CD_rows", _Rows),
                 ("inputs", ct.POINTER(_Input)), ("n_fric", ct.c_int),
                 ("fric_input", _I), ("fric_vel_output", _I), ("fric_vel_diff", _I),
@@ -106,7 +106,7 @@ class CompiledModel:
         self.model, self.layout = model, lay
         S, S2, G1 = model.steady_state_maps()
         self._keep = [np.ascontiguousarray(x, dtype=float).ravel() if np.size(x) else np.zeros(1)
-                      for x in (model.A, model.B, model.C, model.D, S, S2, G1)]
+                      for x in (model.C, model.D, S, S2, G1)]
         aidx = {a: i for i, a in enumerate(lay.axes)}
         ins = (_Input * max(1, len(model.inputs)))()
         for i, p in enumerate(model.inputs):
@@ -121,13 +121,13 @@ class CompiledModel:
                                    lay.axis_pos, lay.axis_err, lay.axis_vel, lay.axis_tool)]
         dbls = [np.ascontiguousarray(v, dtype=float) for v in (lay.axis_level0, lay.axis_vtilde0)]
         self._keep += [ins, *ints, *dbls]
-        A, B, C, D, S_, S2_, G1_ = (_dptr(x) for x in self._keep[:7])
+        C, D, S_, S2_, G1_ = (_dptr(x) for x in self._keep[:5])
         csr = [(_iarr(st), _iarr(col), np.ascontiguousarray(val if len(val) else [0.0]))
                for st, col, val in step_rows(model)]
         self._keep += csr
         rows = [_Rows(st.ctypes.data_as(_I), col.ctypes.data_as(_I), _dptr(val)) for st, col, val in csr]
         self.c = _Model(b"kernel", b"", float(model.Ts), model.n_states, len(model.inputs),
-                        len(model.outputs), len(lay.axes), A, B, C, D, S_, S2_, G1_, *rows, ins,
+                        len(model.outputs), len(lay.axes), C, D, S_, S2_, G1_, *rows, ins,
                         len(lay.fric_inputs), *(x.ctypes.data_as(_I) for x in ints),
                         *(_dptr(x) for x in dbls), 0, None)
 

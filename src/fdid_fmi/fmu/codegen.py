@@ -1,7 +1,8 @@
 """Generate the per-model C data (``model_data.h``, ``model_data.c``) of an FMU.
 
-Everything model-specific is constant data: the unscaled state space (A, B, C, D), the
-steady-state maps of :meth:`DriveModel.steady_state_maps` (S, S2, G1), Ts, the port table
+Everything model-specific is constant data: the unscaled state space ([A B] and [C D] as the
+step's sparse rows, C and D also dense), the steady-state maps of
+:meth:`DriveModel.steady_state_maps` (S, S2, G1), Ts, the port table
 (kinds, axes, feature parameters), the friction inputs and their velocity sources, and the
 FMI variable table. The semantics live in ``fmu_templates/fdid_core.c`` (written once).
 Numbers are written with ``repr`` (shortest round-trip form), so the C compiler reads back
@@ -100,7 +101,7 @@ def model_data_c(layout, guid, model_identifier):
              f" * {int(m.n_states)} states, {len(m.inputs)} inputs, {len(m.outputs)} outputs, "
              f"{len(layout.axes)} axes, Ts = {_num(m.Ts)} s. */\n",
              "#include \"model_data.h\"\n\n"]
-    for nm, arr in (("A", m.A), ("B", m.B), ("C", m.C), ("D", m.D), ("S", S), ("S2", S2), ("G1", G1)):
+    for nm, arr in (("C", m.C), ("D", m.D), ("S", S), ("S2", S2), ("G1", G1)):
         parts.append(_darray(f"data_{nm}", arr))
     for nm, (start, col, val) in zip(("AB", "CD"), step_rows(m)):
         parts += [_iarray(f"data_{nm}_start", start), _iarray(f"data_{nm}_col", col),
@@ -141,7 +142,7 @@ def model_data_c(layout, guid, model_identifier):
         "const FdidModel fdid_model = {\n"
         "    FDID_MODEL_IDENTIFIER, FDID_GUID, " + _num(m.Ts) + ",\n"
         f"    {m.n_states}, {len(m.inputs)}, {len(m.outputs)}, {len(layout.axes)},\n"
-        "    data_A, data_B, data_C, data_D, data_S, data_S2, data_G1,\n"
+        "    data_C, data_D, data_S, data_S2, data_G1,\n"
         + "".join(f"    {{data_{nm}_start, data_{nm}_col, data_{nm}_val}},\n" for nm in ("AB", "CD")) +
         "    data_inputs,\n"
         f"    {len(layout.fric_inputs)}, data_fric_input, data_fric_vel_output, data_fric_vel_diff,\n"

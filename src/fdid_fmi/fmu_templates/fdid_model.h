@@ -85,7 +85,7 @@ typedef struct {
     const char *guid;
     double Ts;                        /* internal step, s */
     int n, m, p, n_axes;              /* states, model inputs, model outputs, axes */
-    const double *A, *B, *C, *D;      /* row-major n*n, n*m, p*n, p*m */
+    const double *C, *D;              /* row-major p*n, p*m (start and friction solve) */
     const double *S, *S2, *G1;        /* steady-state maps n*m, n*m, p*m */
     FdidRows AB_rows, CD_rows;        /* [A B] n*(n+m), [C D] p*(n+m) for the step */
     const FdidInput *inputs;          /* m */
