@@ -5,7 +5,7 @@ import json
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from fdid_fmi.errors import FdidError
@@ -103,6 +103,7 @@ def test_random_bytes_as_model_file(tmp_path, data):
 
 @SETTINGS
 @given(tokens=st.lists(st.text(max_size=12), max_size=4))
+@example(tokens=["\n"])              # found by this test: the token was echoed with its line break
 def test_random_map_tokens(tokens):
     """--map tokens: a mapping whose axis names are identifiers, or one-line InputError."""
     import re

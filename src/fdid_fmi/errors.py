@@ -1,6 +1,12 @@
 """Errors raised for bad user input: each names the file, column/parameter and row."""
 
 
+def one_line(text):
+    """``text`` with every line break and other non-printable character escaped (``\\n``): an error
+    message is one line, whatever the user's file names, columns or tokens contain."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+
+
 class FdidError(Exception):
     """Base class of the errors fdid-fmi raises on purpose."""
 
@@ -29,4 +35,4 @@ class InputError(FdidError, ValueError):
             where.append(f"column '{column}'")
         if row is not None:
             where.append(f"row {row}")
-        super().__init__(f"{': '.join([', '.join(where), message]) if where else message}")
+        super().__init__(one_line(f"{': '.join([', '.join(where), message]) if where else message}"))
