@@ -238,17 +238,31 @@ def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, r
     return model
 
 
-def keep_base_outputs(base: DriveModel, fitted: DriveModel) -> DriveModel:
-    """``fitted`` with every output it shares with ``base`` (by name) predicted exactly as ``base``
-    predicts it.
+def _reached_by(model: DriveModel, first_input):
+    """Boolean mask of the outputs that inputs ``first_input:`` feed (through D or the states
+    their B columns drive, closed under A)."""
+    reach = np.any(model.B[:, first_input:] != 0, axis=1)
+    while True:
+        more = reach | np.any(model.A[:, reach] != 0, axis=1)
+        if (more == reach).all():
+            break
+        reach = more
+    return np.any(model.D[:, first_input:] != 0, axis=1) | np.any(model.C[:, reach] != 0, axis=1)
 
-    A ``locked`` refit keeps the poles and adds inputs and outputs (a tool-side output fed by a
-    backlash input); its LS also refits the numerators of the outputs it did not add, from the
-    model's free-run velocity and without the engine's refinement, which moved plant2's motor
-    side 11-14 % (held out) although the effect concerns the tool side only. The result is the
-    parallel composition: states [base; fitted], the shared outputs from base's states, the
-    added ones from fitted's (exact; a few more states). ``fitted`` is returned as it is when
-    base's inputs are not the leading inputs of fitted.
+
+def keep_base_outputs(base: DriveModel, fitted: DriveModel) -> DriveModel:
+    """``fitted`` with every output it shares with ``base`` (by name) and that its added inputs
+    do not feed predicted as ``base`` predicts it (to rounding: the composition's
+    steady-state maps are computed on larger matrices).
+
+    A ``locked`` refit keeps the poles and adds inputs and outputs (a backlash input on a
+    tool-side output); its LS also refits the numerators of the outputs the effect does not
+    concern, from the model's free-run velocity and without the engine's refinement, which moved
+    plant2's motor side 11-14 % (held out). The result is the parallel composition: states
+    [base; fitted]; outputs the added inputs do not reach come from base's states, the others
+    (the effect's) from fitted's. Its ``poles``, ``identification`` and ``metrics`` are those of
+    ``fitted`` (the refit that the next round's recipe continues from). ``fitted`` itself is
+    returned when base's inputs are not its leading inputs.
     """
     k = len(base.inputs)
     if [(p.name, p.kind, p.params) for p in fitted.inputs[:k]] != [(p.name, p.kind, p.params) for p in base.inputs]:
@@ -261,9 +275,10 @@ def keep_base_outputs(base: DriveModel, fitted: DriveModel) -> DriveModel:
     C = np.hstack([np.zeros((len(fitted.outputs), nb)), fitted.C])
     D = np.array(fitted.D, float)
     rows = {p.name: i for i, p in enumerate(base.outputs)}
+    touched = _reached_by(fitted, k)
     for j, p in enumerate(fitted.outputs):
         i = rows.get(p.name)
-        if i is not None:
+        if i is not None and not touched[j]:
             C[j] = 0.0
             C[j, :nb] = base.C[i]
             D[j] = 0.0

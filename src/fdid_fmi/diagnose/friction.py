@@ -18,7 +18,7 @@ Backlash / lost motion (needs a tool-side channel)
     Statistic: |t| of the direction-aligned mean tool-side residual while moving, over moves:
     m_e = s_e * mean(r_tool over move e); lost motion b shows as m_e = -b/2 on every move.
     Parameter: b = 2 |mean(m_e)| (mm). The refit keeps the poles (``locked``): a tool-side output
-    is added with its own numerators, the motor side keeps its predictions exactly
+    is added with its own numerators, the motor side keeps its predictions (to rounding)
     (``augment.keep_base_outputs``), and it must beat the same tool-side output without the
     backlash input (``reference``).
 
@@ -68,20 +68,30 @@ def detect(ctx):
     return out
 
 
+def concentration(res_list, a, Ts):
+    """The Stribeck statistic of axis ``a``: mean residual energy in the ``WINDOW_S`` after each
+    motion start / stop over the mean elsewhere (``res_list``: Residuals of one model)."""
+    w = max(3, int(round(WINDOW_S / Ts)))
+    num, den, n_in = 0.0, 0.0, 0
+    for res in res_list:
+        ar = res.axes[a]
+        win = _windows(motion_events(ar.cmd, Ts), ar.residual.size, w)
+        if win.any() and (~win).any():
+            num += float(np.sum(ar.residual[win] ** 2))
+            n_in += int(win.sum())
+            den += float(np.mean(ar.residual[~win] ** 2))
+    return (num / max(n_in, 1)) / den if den > 0 else 0.0
+
+
 def _detect_axis(ctx, a):
     Ts = ctx.Ts
     w = max(3, int(round(WINDOW_S / Ts)))
-    num, den, means_even, n_in = 0.0, 0.0, [], 0
+    means_even = []
     tool_m, have_tool = [], False
     for res in ctx.res:
         ar = res.axes[a]
         r = ar.residual
         ev = motion_events(ar.cmd, Ts)
-        win = _windows(ev, r.size, w)
-        if win.any() and (~win).any():
-            num += float(np.sum(r[win] ** 2))
-            n_in += int(win.sum())
-            den += float(np.mean(r[~win] ** 2))
         v = command_velocity(ar.cmd, Ts)
         moving = np.abs(v) > 0.02 * np.max(np.abs(v))
         for seg in _moves(ev, moving, w, r.size):
@@ -92,7 +102,7 @@ def _detect_axis(ctx, a):
                 s = np.sign(np.median(v[seg]))
                 tool_m.append(float(s * np.mean(ar.tool_residual[seg])))
     cands = []
-    ratio = (num / max(n_in, 1)) / den if den > 0 else 0.0
+    ratio = concentration(ctx.res, a, Ts)
     cand = Candidate("stribeck", a, ratio, STRIBECK_RATIO,
                      evidence={"window_s": WINDOW_S, "events": len(means_even)},
                      note="residual energy in the 40 ms after motion starts/stops over the rest")

@@ -61,15 +61,15 @@ class Note:
         return d
 
 
-def data_limits(axes, tool_axes, last_round, kept):
+def data_limits(axes, tool_axes, concentration, kept):
     """Notes on what the data of a diagnosis cannot show or only suggest.
 
     Parameters
     ----------
     axes : axes diagnosed
     tool_axes : axes whose training trace has a tool-side channel
-    last_round : candidate summaries (``Candidate.summary()``) of the last round, i.e. the
-        statistics of the final model: an effect that was kept may explain the concentration
+    concentration : dict axis -> the final model's reversal-concentration statistic on the
+        training trace (:func:`.friction.concentration`); an effect that was kept may explain it
         (plant2's 52 Hz mode: 21.8 with the model as given, 17.6 with the mode added)
     kept : effect dicts that were kept (``Diagnosis.effects_added``)
 
@@ -82,8 +82,7 @@ def data_limits(axes, tool_axes, last_round, kept):
         if a in tool_axes:
             continue
         kept_here = {e.get("kind") for e in kept if e.get("axis") == a}
-        conc = max((c["statistic"] for c in last_round if c["kind"] == "stribeck" and c["axis"] == a),
-                   default=None)
+        conc = concentration.get(a)
         if conc is not None and conc >= REVERSAL_SUSPECT and not kept_here & {"stribeck", "backlash"}:
             notes.append(Note(NoteKind.SUSPECTED, a, "backlash",
                               f"axis {a}: residual after motion starts/stops {conc:.3g}x the rest "

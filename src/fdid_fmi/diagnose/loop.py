@@ -394,18 +394,20 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
             except InputError as exc:
                 rnd["trials"].append({"kind": c.kind, "params": c.params, "error": str(exc)})
                 continue
-            if c.search == "locked":        # what the effect does not concern stays as it was
-                m = ag.keep_base_outputs(current, m)
+            # a locked refit keeps the current poles and, composed with the current model, its
+            # predictions of the channels the effect does not feed: its reference is then the
+            # current model, not the null refit's new poles, which it cannot have
+            kept_base = False
+            if c.search == "locked":
+                composed = ag.keep_base_outputs(current, m)
+                kept_base, m = composed is not m, composed
             rt, rv = residuals(m, train), residuals(m, val)
             tt, tv = rt.table(), rv.table()
-            # a locked refit keeps the current poles and, by keep_base_outputs, the current model's
-            # predictions of the channels it does not add: its reference is the current model, not
-            # the null refit's new poles, which it cannot have
-            rtr, rva = (tab_cur["train"], tab_cur["val"]) if c.search == "locked" else (ref_train, ref_val)
+            rtr, rva = (tab_cur["train"], tab_cur["val"]) if kept_base else (ref_train, ref_val)
             if c.reference is not None:     # the effect must also beat its reference structure
                 mr = ag.fit(c.reference, vel_train, search=c.search, maxiter=maxiter,
                                refine=c.search != "locked")
-                if c.search == "locked":
+                if kept_base:
                     mr = ag.keep_base_outputs(current, mr)
                 t2, v2 = residuals(mr, train).table(), residuals(mr, val).table()
                 rtr = {ch: min(rtr[ch], t2[ch], key=lambda v: v["rms_um"]) for ch in rtr}
@@ -444,8 +446,8 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     diag.residual_after = res_cur
     diag.tests_after = {k: _tests(r) for k, r in res_cur.items()}
     tool_axes = {a for a, ar in res0["train"].axes.items() if ar.tool_residual is not None}
-    # the last round's statistics are those of the final model (unless max_steps ended the loop)
-    diag.notes = data_limits(model.axes, tool_axes, diag.rounds[-1]["candidates"] if diag.rounds else [],
-                             diag.effects_added)
+    conc = ({a: friction.concentration([res_cur["train"]], a, model.Ts) for a in model.axes}
+            if "friction" in names else {})
+    diag.notes = data_limits(model.axes, tool_axes, conc, diag.effects_added)
     diag.wall_time_s = time.perf_counter() - t0
     return diag
