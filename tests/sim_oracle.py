@@ -21,7 +21,8 @@ _TOL = 1e-12
 
 def _mv(M, v):
     """M @ v summed like the C core: left to right along each row (a cumulative sum is sequential;
-    the core skips zero terms, which add exact zeros)."""
+    the core skips zero terms, which add exact zeros; it starts from +0.0, so a row summing to
+    zero may differ in the sign of that zero, which compares equal)."""
     return np.cumsum(np.asarray(M) * v, axis=1)[:, -1] if M.shape[1] else np.zeros(M.shape[0])
 
 
