@@ -28,6 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import sparse
 
 from ..errors import InputError
 from ..model import DriveModel, QuasiStaticModel, delayed_input
@@ -258,22 +259,18 @@ def build_layout(model):
 
 
 def sparse_rows(X):
-    """The nonzero entries of X by row (the C core's ``FdidRows``, compressed sparse rows).
-
-    Parameters
-    ----------
-    X : (r, c) array
+    """The nonzero entries of X by row (the C core's ``FdidRows``): scipy's compressed sparse
+    rows, whose columns ascend within a row when built from a dense array.
 
     Returns
     -------
     start : (r + 1,) int, row i holds entries start[i] .. start[i + 1] - 1
-    col : (nnz,) int, their columns, ascending within a row
+    col : (nnz,) int, their columns
     val : (nnz,) float, their values
     """
-    X = np.asarray(X, dtype=float)
-    rows, cols = np.nonzero(X)                 # row-major order: columns ascend within a row
-    start = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=X.shape[0]))])
-    return start.astype(np.intc), cols.astype(np.intc), X[rows, cols]
+    csr = sparse.csr_matrix(np.asarray(X, dtype=float))
+    csr.sort_indices()
+    return csr.indptr.astype(np.intc), csr.indices.astype(np.intc), csr.data
 
 
 def step_rows(model):
