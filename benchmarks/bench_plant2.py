@@ -200,6 +200,8 @@ def diagnosis(name):
     out["first_round"] = _max_by_kind(d.rounds[0]["candidates"]) if d.rounds else {}
     kinds = [e["kind"] for e in d.effects_added]
     out["suspected"] = [n.effect for n in d.notes if n.kind == NoteKind.SUSPECTED]
+    out["order_too_low"] = [round(n.statistic, 4) for n in d.notes if n.kind == NoteKind.ORDER_TOO_LOW]
+    out["order_check"] = d.rounds[0].get("order_check") if d.rounds else None
     # an effect the data cannot identify counts when the diagnosis says it is suspected
     out["correct"] = (kinds == [] and not out["suspected"] if truth["effect"] is None
                       else truth["effect"] in kinds + out["suspected"])
@@ -301,6 +303,8 @@ def print_tables(res):
                               for e in d["named"]) or "none"
             if d.get("suspected"):
                 named += " (suspected, not identifiable: " + ", ".join(d["suspected"]) + ")"
+            if d.get("order_too_low"):
+                named += f" (order too low: one more real pole {100 * d['order_too_low'][0]:.1f} % better)"
             chans = " ".join(f"{ch}: {d['before_val'][ch]['rms_um']:.3g} → {d['after_val'][ch]['rms_um']:.3g}"
                              for ch in d["before_val"])
             print(f"| {d['scenario']} | {d['truth'] or 'none'} {d['truth_params'] or ''} | {named} | {chans} | "

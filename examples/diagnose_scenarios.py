@@ -15,6 +15,7 @@ from pathlib import Path
 
 from fdid_fmi.diagnose import diagnose
 from fdid_fmi.diagnose.reporting import diagnosis_report, fmu_check
+from fdid_fmi.diagnose.limits import NoteKind
 from fdid_fmi.diagnose.scenarios import INTEGRAL_ACTION, scenario
 from fdid_fmi.identify import identify_siso
 from fdid_fmi.io import read_trace
@@ -32,6 +33,9 @@ def params(e):
 
 def row(name, d, fmu, t):
     eff = "; ".join(f"{e['kind']} ({params(e)})" for e in d.effects_added) or "none"
+    notes = [n for n in d.notes if n.kind != NoteKind.NOT_OBSERVABLE]
+    if notes:
+        eff += "; note " + ", ".join(f"{n.kind.value} ({n.statistic:.3g})" for n in notes)
     cells = [name, eff]
     chans = list(d.before["val"])
     for tname in ("train", "val"):

@@ -22,6 +22,8 @@ effect (``kind``)           how the model carries it
                             the d.c. one)
 ``extra_input``             external input: an unused trace channel (all numerator terms)
 ``mode``                    one more complex pole pair, searched near the detected frequency
+(order check)               one more real pole (:func:`add_real_pole`, :mod:`.order`): a
+                            structure check, not an effect
 ``delay``                   a d-sample delay line on the COMMAND input inside A/B: the LTI part is
                             fitted to x_r(k - d) and the derived error row still uses x_r(k)
 ==========================  ======================================================================
@@ -206,11 +208,14 @@ def model_velocity_traces(model: DriveModel, traces):
     return out
 
 
-def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, refine=True) -> DriveModel:
+def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, refine=True,
+        from_current=False) -> DriveModel:
     """Refit a recipe on training traces with the pole-search engine (see module docstring).
 
     ``traces`` should carry the velocity the features are to see (:func:`model_velocity_traces`).
     ``refine``: the engine's simulation-consistent friction refinement (off for quick screening).
+    ``from_current``: start the search from the recipe's poles (new pairs: the middle of their
+    bounds), so that the refit ends no worse in the LS objective than that start.
 
     Returns
     -------
@@ -228,7 +233,8 @@ def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, r
         warnings.simplefilter("ignore", RuntimeWarning)
         model = identify_mimo(shifted_traces(recipe, traces), st, bounds=bounds,
                               v_tilde=dict(recipe.v_tilde), method="de", seed=seed, maxiter=maxiter,
-                              popsize=popsize, refine=refine)
+                              popsize=popsize, refine=refine,
+                              start=_start(recipe) if from_current and search != "locked" else None)
     model.method = "pole-search+diagnose"
     for a, d in recipe.delays.items():
         if d:
@@ -236,6 +242,13 @@ def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, r
     model.identification["diagnose"] = {"delays": {a: int(d) for a, d in recipe.delays.items() if d}}
     model.effects = copy.deepcopy(recipe.effects)
     return model
+
+
+def _start(recipe: Recipe):
+    """The recipe's poles as a search start: (real_hz, complex_hz_zeta), new pairs at the
+    geometric middle of their bounds."""
+    pairs = [(np.sqrt(lo * hi), np.sqrt(zl * zh)) for lo, hi, zl, zh in recipe.new_pairs]
+    return list(recipe.real_hz), [tuple(c) for c in recipe.complex_hz_zeta] + pairs
 
 
 def _reached_by(model: DriveModel, first_input):
@@ -480,6 +493,16 @@ def add_mode(recipe, axis, frequency_hz, rel=0.15, zeta=(0.005, 0.5)):
     n_new = r.order
     r.masks = {k: _shift_mask(v, n_old, n_new) for k, v in r.masks.items()}
     r.effects.append({"kind": "mode", "axis": axis, "detected_hz": float(frequency_hz)})
+    return r
+
+
+def add_real_pole(recipe, frequency_hz):
+    """One more real pole at ``frequency_hz``: the structure of the order check (:mod:`.order`),
+    not an effect (nothing is added to ``effects``)."""
+    r = recipe.copy()
+    n_old = r.order
+    r.real_hz = list(r.real_hz) + [float(frequency_hz)]
+    r.masks = {k: _shift_mask(v, n_old, r.order) for k, v in r.masks.items()}
     return r
 
 

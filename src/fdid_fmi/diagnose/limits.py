@@ -15,6 +15,12 @@ effects cannot get there from the data given, and the user should hear so instea
                     was kept: lost motion (or another reversal effect the friction model lacks) is
                     suspected, and without a tool-side channel it cannot be identified.
 
+``order_too_low``   the model as given, refitted with one more real pole (:mod:`.order`),
+                    predicts the held-out data better by the keep criterion and the training
+                    data no worse: the structure is not adequate, and a residual it leaves is
+                    not an effect. Identify with the default structure choice or a higher
+                    order.
+
 Threshold of ``suspected`` (``REVERSAL_SUSPECT``), calibrated on the second plant and measured on
 the virtual drive (``examples/diagnose_calibrate.py --effects --plant2`` gives the statistics,
 pole-search models of each training trace): plant2's LuGre friction leaves the most reversal
@@ -37,6 +43,7 @@ REVERSAL_SUSPECT = 21.2
 class NoteKind(str, Enum):
     NOT_OBSERVABLE = "not_observable"
     SUSPECTED = "suspected"
+    ORDER_TOO_LOW = "order_too_low"
 
 
 @dataclass
@@ -95,3 +102,17 @@ def data_limits(axes, tool_axes, concentration, kept):
                               f"axis {a}: lost motion (backlash) between motor and table was not "
                               "checked: the trace has no tool-side channel for this axis"))
     return notes
+
+
+def order_too_low(axis, gain, min_gain):
+    """The note for a first-round order check that met the keep criterion (:mod:`.loop`).
+
+    gain : the largest relative held-out RMS reduction of the refit with one more real pole
+    (against the better of the model and its refit with the same order); min_gain : the keep
+    criterion's.
+    """
+    return Note(NoteKind.ORDER_TOO_LOW, axis, "order",
+                f"axis {axis}: one more real pole lowers the held-out RMS by {100 * gain:.1f} % "
+                f"(criterion {100 * min_gain:g} %): the model's order is too low for these data; "
+                "identify with the default structure choice (fdid identify without structure "
+                "flags) or a higher order", gain, min_gain)

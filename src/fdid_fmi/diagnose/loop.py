@@ -12,6 +12,16 @@ Each round:
 3. candidates are tried in order of their training improvement; the first one that meets the
    KEEP CRITERION on the held-out trace is kept, and the next round starts from it.
 
+Order check (issue 10: "a residual explained by one more pole is 'the model's order is too
+low', not a dead time"): in the first round, and in every round with a dead-time or mode
+candidate, the current structure is also refitted with one more real pole
+(:mod:`.order`). The check is met when that refit meets the keep criterion and no training
+channel rises by more than ``max_loss`` either (the extra pole nests the current model: a refit
+that fits the training data worse and only the held-out data better has found no dynamics).
+When it is met, a dead time or a mode is kept only if it also beats that refit, and in the first
+round the diagnosis reports the note ``order_too_low`` (:mod:`.limits`; the model is not changed
+by it).
+
 Keep criterion: on the held-out trace, the RMS residual of some scored channel (each axis's
 position, and its tool side when measured) falls by at least ``min_gain`` (default 5 %) relative
 to the better of the current model and the null refit, and no scored channel rises by more than
@@ -35,13 +45,15 @@ import numpy as np
 from ..errors import InputError
 from ..model import DriveModel
 from . import augment as ag
-from . import coupling, delay, friction, mode, periodic, whiteness
+from . import coupling, delay, friction, mode, order, periodic, whiteness
 from .base import Context, command_velocity, implausible
-from .limits import data_limits
+from .limits import data_limits, order_too_low
 from .residuals import Residuals, residuals, split_halves
 
 DETECTORS = {"friction": friction, "mode": mode, "delay": delay, "periodic": periodic,
              "coupling": coupling}
+# effects that one more pole can imitate: they must also beat the order check's refit
+ORDER_RIVALS = ("delay", "mode")
 
 
 @dataclass
@@ -300,6 +312,15 @@ def _combined(model, blocks, train, val, split, kw, say, t0):
     return diag
 
 
+def _order_check(recipe, vel_train, train, val, maxiter):
+    """Residual tables of the refit with one more real pole (None when it cannot be fitted)."""
+    try:
+        plus = order.one_more_pole(recipe, vel_train, maxiter)
+    except InputError:
+        return None
+    return {"train": residuals(plus, train).table(), "val": residuals(plus, val).table()}
+
+
 def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, max_loss=0.01,
              max_steps=4, maxiter=25, exclude=(), max_delay=6, progress=None, _reserved=()) -> Diagnosis:
     """Find what the residual says the model lacks, add it, and report the error before and after.
@@ -362,6 +383,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     diag.residual_before = res0
     diag.tests_before = {k: _tests(r) for k, r in res0.items()}
     res_cur = res0
+    order_notes = []
     for step in range(max_steps):
         tab_cur = {k: r.table() for k, r in res_cur.items()}
         vel_train = ag.model_velocity_traces(current, [train])
@@ -375,7 +397,8 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         rnd = {"round": step + 1, "candidates": [c.summary() for c in cands], "trials": [],
                "plots": {f"{c.kind}|{c.axis}": c.plot for c in cands if c.plot}}
         diag.rounds.append(rnd)
-        if not detected:
+        rivals = [c for c in detected if c.kind in ORDER_RIVALS]
+        if not detected and step > 0:
             say(f"round {step + 1}: nothing detected")
             break
         say(f"round {step + 1}: null refit")
@@ -385,6 +408,24 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
                    for ch in tab_cur["val"]}
         ref_train = {ch: min(tab_cur["train"][ch], tab_null["train"][ch], key=lambda v: v["rms_um"])
                      for ch in tab_cur["train"]}
+        tab_plus = None
+        if step == 0 or rivals:     # is the structure adequate before naming an effect?
+            say(f"round {step + 1}: order check (one more real pole)")
+            tab_plus = _order_check(recipe, vel_train, train, val, maxiter)
+            if tab_plus is not None:
+                g_train, g_val = _gain(ref_train, tab_plus["train"]), _gain(ref_val, tab_plus["val"])
+                # a pole that nests the current model must also not fit the training data worse
+                met = (max(g_val.values()) >= min_gain and min(g_val.values()) >= -max_loss
+                       and min(g_train.values()) >= -max_loss)
+                rnd["order_check"] = {"gain_train": g_train, "gain_val": g_val, "criterion_met": bool(met)}
+                if not met:
+                    tab_plus = None
+                elif step == 0:
+                    ch = max(g_val, key=g_val.get)
+                    order_notes.append(order_too_low(ch.split(".")[0], g_val[ch], min_gain))
+        if not detected:
+            say(f"round {step + 1}: nothing detected")
+            break
         trials = []
         for c in detected:
             say(f"round {step + 1}: refit with {c.kind} {c.params}")
@@ -404,6 +445,9 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
             rt, rv = residuals(m, train), residuals(m, val)
             tt, tv = rt.table(), rv.table()
             rtr, rva = (tab_cur["train"], tab_cur["val"]) if kept_base else (ref_train, ref_val)
+            if tab_plus is not None and c.kind in ORDER_RIVALS:   # and one more real pole
+                rtr = {ch: min(rtr[ch], tab_plus["train"][ch], key=lambda v: v["rms_um"]) for ch in rtr}
+                rva = {ch: min(rva[ch], tab_plus["val"][ch], key=lambda v: v["rms_um"]) for ch in rva}
             if c.reference is not None:     # the effect must also beat its reference structure
                 mr = ag.fit(c.reference, vel_train, search=c.search, maxiter=maxiter,
                                refine=c.search != "locked")
@@ -448,6 +492,6 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     tool_axes = {a for a, ar in res0["train"].axes.items() if ar.tool_residual is not None}
     conc = ({a: friction.concentration([res_cur["train"]], a, model.Ts) for a in model.axes}
             if "friction" in names else {})
-    diag.notes = data_limits(model.axes, tool_axes, conc, diag.effects_added)
+    diag.notes = order_notes + data_limits(model.axes, tool_axes, conc, diag.effects_added)
     diag.wall_time_s = time.perf_counter() - t0
     return diag

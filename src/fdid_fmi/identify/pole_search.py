@@ -54,6 +54,10 @@ class _Params:
             vt[ax] = float(10 ** x[nr + 2 * nc + k])
         return real, cplx, vt
 
+    def v_start(self):
+        """v_tilde in the middle of its log range for every searched axis (a start point)."""
+        return {a: float(np.sqrt(self.b.v_tilde[0] * self.b.v_tilde[1])) for a in self.v_search}
+
     def encode(self, real, cplx, vt):
         x = list(np.log10(real)) + [np.log10(w) for w, _ in cplx] + [z for _, z in cplx]
         x += [np.log10(vt[a]) for a in self.v_search]
@@ -90,7 +94,8 @@ class _Params:
 
 # ------------------------------------------------------------------ API
 def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_tilde=None,
-                  method="de", seed=0, maxiter=None, popsize=None, progress=False, refine=True):
+                  method="de", seed=0, maxiter=None, popsize=None, progress=False, refine=True,
+                  start=None):
     """Scaled MIMO LTI pole search (thesis ch. 5) -> unscaled DriveModel.
 
     Parameters
@@ -107,6 +112,9 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
     refine : bool
         After the search, make the friction simulation-consistent (:func:`refine_friction`):
         keep it only if the free-run error on the training data falls.
+    start : (real_hz, complex_hz_zeta), optional
+        Poles to start the search from (the free ones, in the structure's order; clipped to the
+        bounds): a refit then ends no worse, in the LS objective, than where it started.
 
     Returns
     -------
@@ -147,8 +155,9 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
     if par.lo.size == 0:  # everything locked: a single LS projection
         xbest, minima, nfev, fun = np.array([]), [], 1, objective(np.array([]))
     else:
+        x0 = None if start is None else par.encode(*start, par.v_start())
         res = run_search(objective, par.lo, par.hi, method=method, seed=seed, maxiter=maxiter,
-                         popsize=popsize, progress=progress)
+                         popsize=popsize, progress=progress, x0=x0)
         xbest, nfev, fun = par.canonical(res.x), res.nfev, res.fun
         minima = [(f, par.canonical(x)) for f, x in res.minima]
     # the LS objective is nearly flat between basins that free-run very differently: the best

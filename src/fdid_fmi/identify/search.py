@@ -77,7 +77,7 @@ def distinct_minima(points, scale, rtol=0.02, keep=10):
 
 
 def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, progress=False,
-               starts=None, local_polish=True):
+               starts=None, local_polish=True, x0=None):
     """Minimise ``fun`` over the box [lo, hi].
 
     Parameters
@@ -88,6 +88,8 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
     seed : int, makes the search deterministic
     maxiter, popsize : DE settings (defaults scale with the dimension)
     starts : number of multistart points (default 8 + 4 dim)
+    x0 : array, optional, a start point (clipped to the box): a member of DE's first population,
+        the first multistart point; for every method the result is no worse than ``fun(x0)``
 
     Returns
     -------
@@ -117,6 +119,8 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
         maxiter = maxiter or 1500
         total = maxiter
     cnt = _Counter(fun, progress, total, f"pole search ({method})")
+    if x0 is not None:
+        x0 = np.clip(np.asarray(x0, float), lo, hi)
 
     def local(x0):
         with np.errstate(invalid="ignore", over="ignore"):   # inf objectives (see _Counter)
@@ -128,6 +132,8 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
         if method == "multistart":
             sob = qmc.Sobol(dim, seed=seed)
             X0 = qmc.scale(sob.random(int(2 ** np.ceil(np.log2(starts))))[:starts], lo, hi)
+            if x0 is not None:
+                X0 = np.vstack([x0, X0[:-1]])
             pts = [local(x0) for x0 in X0]
             best = min(pts, key=lambda p: p[0])
         else:
@@ -135,13 +141,15 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
                 res = optimize.differential_evolution(
                     cnt, bounds, seed=seed, popsize=popsize, maxiter=maxiter, tol=1e-7, atol=0,
                     init="sobol", polish=False, updating="deferred", mutation=(0.5, 1.0),
-                    recombination=0.8)
+                    recombination=0.8, x0=x0)
                 pts.extend(zip(res.population_energies, res.population))
             else:
                 res = optimize.direct(cnt, bounds, maxfun=maxiter, locally_biased=True)
             best = (res.fun, res.x)
             if local_polish:
                 best = min(best, local(res.x), key=lambda p: p[0])
+            if x0 is not None:
+                best = min(best, (cnt(x0), x0), key=lambda p: p[0])
             pts.append(best)
     finally:
         cnt.close()

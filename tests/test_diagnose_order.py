@@ -1,0 +1,93 @@
+"""The order check of the diagnosis (issue 10): one more real pole before an effect is named.
+
+A drive whose closed loop has four poles, identified with the three-pole rigid structure: the
+diagnosis must say the order is too low. The search's start point, which the check relies on,
+must leave every search method no worse than where it started.
+"""
+import warnings
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from fdid_fmi.diagnose import augment as ag
+from fdid_fmi.diagnose import diagnose
+from fdid_fmi.diagnose.limits import NoteKind
+from fdid_fmi.identify import identify_siso
+from fdid_fmi.identify.search import METHODS, run_search
+from fdid_fmi.trace import Trace
+
+
+def four_pole_trace(seed, n=4000, Ts=1e-3):
+    """Smooth random moves through a closed loop with a pair (20 Hz, zeta 0.5) and two real poles
+    (2 Hz, 80 Hz), answering one cycle late, with 10 nm of measurement noise."""
+    rng = np.random.default_rng(seed)
+    cmd = np.zeros(n)
+    k = 50
+    while k < n - 400:
+        steps = int(rng.integers(150, 400))
+        cmd[k:] = cmd[k - 1] + rng.uniform(-5, 5) * 0.5 * (1 - np.cos(np.pi * np.minimum(np.arange(n - k), steps) / steps))
+        k += steps + int(rng.integers(50, 150))
+    w = 2 * np.pi * 20
+    poles = [-0.5 * w + 1j * w * np.sqrt(0.75), -0.5 * w - 1j * w * np.sqrt(0.75), -2 * np.pi * 2, -2 * np.pi * 80]
+    gain = np.real(np.prod(-np.array(poles)))
+    A, B, C, D = signal.zpk2ss([], poles, gain)
+    Ad, Bd, Cd, Dd, _ = signal.cont2discrete((A, B, C, D), Ts, method="zoh")
+    _, y, _ = signal.dlsim((Ad, Bd, Cd, Dd, Ts), cmd - cmd[0])
+    act = np.r_[0.0, y[:-1, 0]] + cmd[0] + rng.normal(0, 1e-5, n)
+    return Trace.from_arrays(np.arange(n) * Ts, {"x": {"cmd": cmd, "act": act}})
+
+
+def test_one_pole_short_model_gets_the_order_note():
+    tr, va = four_pole_trace(1), four_pole_trace(2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = identify_siso(tr, maxiter=10, friction=False)
+        d = diagnose(model, tr, va, maxiter=10)
+    notes = [n for n in d.notes if n.kind == NoteKind.ORDER_TOO_LOW]
+    assert len(notes) == 1 and notes[0].axis == "x"
+    # measured: one more real pole lowers the held-out RMS by 43 %
+    assert notes[0].statistic >= 0.2
+    assert "order is too low" in notes[0].text
+    check = d.rounds[0]["order_check"]
+    assert check["criterion_met"] and check["gain_val"]["x"] == notes[0].statistic
+    # the note does not change the model, and nothing else was named
+    assert d.effects_added == [] and d.final is model
+    assert d.to_json()["notes"][0]["kind"] == "order_too_low"
+
+
+def test_add_real_pole_raises_the_order_by_one(small_recipe):
+    rec, trs = small_recipe
+    r = ag.add_real_pole(rec, 50.0)
+    assert r.order == rec.order + 1 and r.real_hz == rec.real_hz + [50.0]
+    assert r.effects == rec.effects and rec.order == len(rec.real_hz) + 2 * len(rec.complex_hz_zeta)
+    m = ag.fit(r, trs, search="locked", refine=False)
+    assert len(m.poles) == rec.order + 1
+    assert any(np.isclose(-p.real / (2 * np.pi), 50.0) and p.imag == 0 for p in m.poles)
+
+
+@pytest.fixture(scope="module")
+def small_recipe():
+    tr = four_pole_trace(3, n=2000)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = identify_siso(tr, maxiter=5, friction=False)
+    return ag.recipe_from_model(model), [tr]
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_search_ends_no_worse_than_its_start(method):
+    """Rastrigin in 3-D, shifted off the box's centre, with a tiny budget: the start point is the
+    global minimum, which a search this short does not find by itself."""
+    x0 = np.array([1.0, -2.0, 3.0])
+
+    def f(x):
+        z = x - x0
+        return float(10 * z.size + np.sum(z * z - 10 * np.cos(2 * np.pi * z)))
+
+    lo, hi = -5.12 * np.ones(3), 5.12 * np.ones(3)
+    blind = run_search(f, lo, hi, method=method, seed=1, maxiter=2, popsize=4, starts=2, local_polish=False)
+    started = run_search(f, lo, hi, method=method, seed=1, maxiter=2, popsize=4, starts=2, local_polish=False,
+                         x0=x0)
+    assert blind.fun > 0.5                  # the short search alone misses the minimum
+    assert started.fun <= f(x0) == 0.0
