@@ -52,6 +52,7 @@ from fdid_fmi.identify.choose_structure import choose, fit_structures  # noqa: E
 from fdid_fmi.metrics import rms  # noqa: E402
 from fdid_fmi.simulate import simulate  # noqa: E402
 from plant2 import scenarios as p2  # noqa: E402
+from plant2.linear import closed_loop_pairs  # noqa: E402
 from timing import timed  # noqa: E402  (benchmarks/timing.py)
 
 OUT = ROOT / "benchmarks" / "results"
@@ -183,6 +184,9 @@ def diagnosis(name):
     va = next(v for v in vals if v.meta["name"] == "reversals")
     print(f"\n[diagnose {name}] truth: {truth['effect']} {truth['effect_params']}", flush=True)
     out = {"scenario": name, "axis": ax, "truth": truth["effect"], "truth_params": truth["effect_params"]}
+    if truth["effect"] == "mode":       # what a fitted mode is compared with: the closed loop's pair
+        machine = p2.SCENARIOS[name][0]()
+        out["closed_loop_pairs"] = closed_loop_pairs(machine.axis(ax), machine.Ts)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -307,7 +311,8 @@ def print_tables(res):
                 named += f" (order too low: one more real pole {100 * d['order_too_low'][0]:.1f} % better)"
             chans = " ".join(f"{ch}: {d['before_val'][ch]['rms_um']:.3g} → {d['after_val'][ch]['rms_um']:.3g}"
                              for ch in d["before_val"])
-            print(f"| {d['scenario']} | {d['truth'] or 'none'} {d['truth_params'] or ''} | {named} | {chans} | "
+            cl = "".join(f" (closed-loop pair {f:.2f} Hz, ζ {z:.3f})" for f, z in d.get("closed_loop_pairs", [])[:1])
+            print(f"| {d['scenario']} | {d['truth'] or 'none'} {d['truth_params'] or ''}{cl} | {named} | {chans} | "
                   f"{'yes' if d['correct'] else 'no'} |")
     if res.get("calibration"):
         c = res["calibration"]

@@ -13,8 +13,9 @@ Each round:
    KEEP CRITERION on the held-out trace is kept, and the next round starts from it.
 
 Order check (issue 10: "a residual explained by one more pole is 'the model's order is too
-low', not a dead time"): in the first round, and in every round with a dead-time or mode
-candidate, the current structure is also refitted with one more real pole
+low', not a dead time"): before an effect can be named, i.e. in the first round with a candidate
+and in every round with a dead-time or mode candidate, the current structure is also refitted
+with one more real pole
 (:mod:`.order`). The check is met when that refit meets the keep criterion and no training
 channel rises by more than ``max_loss`` either (the extra pole nests the current model: a refit
 that fits the training data worse and only the held-out data better has found no dynamics).
@@ -397,8 +398,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         rnd = {"round": step + 1, "candidates": [c.summary() for c in cands], "trials": [],
                "plots": {f"{c.kind}|{c.axis}": c.plot for c in cands if c.plot}}
         diag.rounds.append(rnd)
-        rivals = [c for c in detected if c.kind in ORDER_RIVALS]
-        if not detected and step > 0:
+        if not detected:
             say(f"round {step + 1}: nothing detected")
             break
         say(f"round {step + 1}: null refit")
@@ -409,7 +409,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         ref_train = {ch: min(tab_cur["train"][ch], tab_null["train"][ch], key=lambda v: v["rms_um"])
                      for ch in tab_cur["train"]}
         tab_plus = None
-        if step == 0 or rivals:     # is the structure adequate before naming an effect?
+        if step == 0 or any(c.kind in ORDER_RIVALS for c in detected):   # is the structure adequate?
             say(f"round {step + 1}: order check (one more real pole)")
             tab_plus = _order_check(recipe, vel_train, train, val, maxiter)
             if tab_plus is not None:
@@ -423,9 +423,6 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
                 elif step == 0:
                     ch = max(g_val, key=g_val.get)
                     order_notes.append(order_too_low(ch.split(".")[0], g_val[ch], min_gain))
-        if not detected:
-            say(f"round {step + 1}: nothing detected")
-            break
         trials = []
         for c in detected:
             say(f"round {step + 1}: refit with {c.kind} {c.params}")

@@ -1,18 +1,17 @@
 """Is the model's order too low? One more real pole, tried before an effect is named (issue 10).
 
 A residual that one more pole explains means the model's order is too low; it is not a dead time
-or a mode, which are the effects a missing pole imitates best. :mod:`.loop` refits the current
-structure with one more real pole in the first round and in every round with a dead-time or mode
-candidate. A first-round refit that meets the keep criterion gives the note ``order_too_low``
-(:mod:`.limits`), and a dead time or mode must also beat it.
+or a mode, which are the effects a missing pole imitates best. :mod:`.loop` decides what the
+refit below counts for (the note ``order_too_low``, a rival a dead time or mode must beat).
 
 The refit: the new pole's frequency is scanned over a log grid from ``LOWEST_HZ`` to 0.4 / Ts,
 with every other pole fixed (one LS projection per point, parabola-refined, as the Stribeck
 velocity in :mod:`.friction`). The pole search then runs in the local windows around all the
-poles, starting from there (it ends no worse in the LS objective than the scan's best point). A differential-evolution search of the new pole over the whole range, with the other poles
-in their local windows, was tried first. Held out, it was worse than the better of the model and
-its same-order refit on 9 of 14 plant2 and virtual-drive runs, by up to 79 %: its few generations
-do not converge in the larger space.
+poles, starting from the scan's best point, so it ends no worse than that point in the LS
+objective. A differential-evolution search of the new pole over the whole range, with the other
+poles in their local windows, was tried first. Held out, it was worse than the better of the
+model and its same-order refit on 9 of 14 plant2 and virtual-drive runs, by up to 79 %: its few
+generations do not converge in the larger space.
 """
 from __future__ import annotations
 
