@@ -14,8 +14,8 @@ Each round:
 
 Order check (issue 10: "a residual explained by one more pole is 'the model's order is too
 low', not a dead time"): before an effect can be named, i.e. in the first round with a candidate
-and in every round with a dead-time or mode candidate, the current structure is also refitted
-with one more real pole
+(and, once that check was met, in every later round with a dead-time or mode candidate), the
+current structure is also refitted with one more real pole
 (:mod:`.order`). The check is met when that refit meets the keep criterion and no training
 channel rises by more than ``max_loss`` either (the extra pole nests the current model: a refit
 that fits the training data worse and only the held-out data better has found no dynamics).
@@ -409,7 +409,8 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         ref_train = {ch: min(tab_cur["train"][ch], tab_null["train"][ch], key=lambda v: v["rms_um"])
                      for ch in tab_cur["train"]}
         tab_plus = None
-        if step == 0 or any(c.kind in ORDER_RIVALS for c in detected):   # is the structure adequate?
+        rivals = any(c.kind in ORDER_RIVALS for c in detected)
+        if step == 0 or (order_notes and rivals):       # is the structure adequate?
             say(f"round {step + 1}: order check (one more real pole)")
             tab_plus = _order_check(recipe, vel_train, train, val, maxiter)
             if tab_plus is not None:
