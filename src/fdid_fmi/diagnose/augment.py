@@ -215,7 +215,7 @@ def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, r
     ``traces`` should carry the velocity the features are to see (:func:`model_velocity_traces`).
     ``refine``: the engine's simulation-consistent friction refinement (off for quick screening).
     ``from_current``: start the search from the recipe's poles (new pairs: the middle of their
-    bounds), so that the refit ends no worse in the LS objective than that start.
+    bounds), so that the search ends no worse in the LS objective than that start.
 
     Returns
     -------
@@ -498,7 +498,10 @@ def add_mode(recipe, axis, frequency_hz, rel=0.15, zeta=(0.005, 0.5)):
 
 def add_real_pole(recipe, frequency_hz):
     """One more real pole at ``frequency_hz``: the structure of the order check (:mod:`.order`),
-    not an effect (nothing is added to ``effects``)."""
+    not an effect (nothing is added to ``effects``). Numerators keep their s-powers as for a mode
+    (:func:`_shift_mask`), so a strictly proper path gains one degree of relative order: the new
+    structure does not contain the given one exactly.
+    """
     r = recipe.copy()
     n_old = r.order
     r.real_hz = list(r.real_hz) + [float(frequency_hz)]

@@ -1,7 +1,9 @@
-"""What the data cannot show, or only suggest: notes the diagnosis reports without adding an effect.
+"""Notes the diagnosis reports without adding an effect: what the data cannot show, or only
+suggest, and whether the model's structure is adequate for them.
 
 An effect is added only when a refit with it predicts held-out data better (:mod:`.loop`). Some
-effects cannot get there from the data given, and the user should hear so instead of silence:
+effects cannot get there from the data given, and some residuals are the structure's, not an
+effect's; the user should hear so instead of silence:
 
 ``not_observable``  lost motion (backlash) between motor and table when the trace has no
                     tool-side channel for the axis: a motor encoder measures the motor, and the

@@ -114,7 +114,9 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
         keep it only if the free-run error on the training data falls.
     start : (real_hz, complex_hz_zeta), optional
         Poles to start the search from (the free ones, in the structure's order; clipped to the
-        bounds): a refit then ends no worse, in the LS objective, than where it started.
+        bounds; a searched v_tilde starts in the middle of its range): the search then ends no
+        worse, in the LS objective, than that start (the model is still picked by training free
+        run among the minima within ``SELECT_MARGIN`` of the best).
 
     Returns
     -------
@@ -125,7 +127,7 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
     if structure.same_sample is None:
         return _choose_same_sample(traces, structure, bounds=bounds, v_tilde=v_tilde, method=method,
                                    seed=seed, maxiter=maxiter, popsize=popsize, progress=progress,
-                                   refine=refine)
+                                   refine=refine, start=start)
     prob = LSProblem(traces, structure)
     Ts = prob.Ts
     fric_axes = [s.axis for s in structure.inputs if s.kind == "friction"]
