@@ -112,11 +112,12 @@ def motion_events(cmd, Ts, frac=0.02):
 
 
 def scan_refine(f, xs):
-    """Minimise f over the grid xs, then a parabola through the best point and its neighbours."""
+    """Minimise f over the grid xs, then a parabola through the best point and its neighbours
+    (when all three are finite)."""
     vals = np.array([f(x) for x in xs])
     k = int(np.argmin(vals))
     best = float(xs[k])
-    if 0 < k < len(xs) - 1:
+    if 0 < k < len(xs) - 1 and np.all(np.isfinite(vals[k - 1:k + 2])):   # inf: an infeasible point
         x0, x1, x2 = xs[k - 1], xs[k], xs[k + 1]
         y0, y1, y2 = vals[k - 1], vals[k], vals[k + 1]
         den = (x0 - x1) * (x0 - x2) * (x1 - x2)
