@@ -166,6 +166,11 @@ def _gain(ref, new):
             for ch in ref if ch in new}
 
 
+def _better(a, b):
+    """Per channel, the entry of the two residual tables with the lower RMS (a reference)."""
+    return {ch: min(a[ch], b[ch], key=lambda v: v["rms_um"]) for ch in a}
+
+
 def _runs(ports, what):
     """[(axis, [indices])] of consecutive ports of the same axis."""
     runs = []
@@ -406,10 +411,8 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         say(f"round {step + 1}: null refit")
         null = ag.fit(recipe, vel_train, search="local", maxiter=maxiter)
         tab_null = {"train": residuals(null, train).table(), "val": residuals(null, val).table()}
-        ref_val = {ch: min(tab_cur["val"][ch], tab_null["val"][ch], key=lambda v: v["rms_um"])
-                   for ch in tab_cur["val"]}
-        ref_train = {ch: min(tab_cur["train"][ch], tab_null["train"][ch], key=lambda v: v["rms_um"])
-                     for ch in tab_cur["train"]}
+        ref_val = _better(tab_cur["val"], tab_null["val"])
+        ref_train = _better(tab_cur["train"], tab_null["train"])
         tab_plus = None
         rivals = any(c.kind in ORDER_RIVALS for c in detected)
         if step == 0 or (order_notes and rivals):       # is the structure adequate?
@@ -448,16 +451,14 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
             tt, tv = rt.table(), rv.table()
             rtr, rva = (tab_cur["train"], tab_cur["val"]) if kept_base else (ref_train, ref_val)
             if tab_plus is not None and c.kind in ORDER_RIVALS:   # and one more real pole
-                rtr = {ch: min(rtr[ch], tab_plus["train"][ch], key=lambda v: v["rms_um"]) for ch in rtr}
-                rva = {ch: min(rva[ch], tab_plus["val"][ch], key=lambda v: v["rms_um"]) for ch in rva}
+                rtr, rva = _better(rtr, tab_plus["train"]), _better(rva, tab_plus["val"])
             if c.reference is not None:     # the effect must also beat its reference structure
                 mr = ag.fit(c.reference, vel_train, search=c.search, maxiter=maxiter,
                                refine=c.search != "locked")
                 if kept_base:
                     mr = ag.keep_base_outputs(current, mr)
                 t2, v2 = residuals(mr, train).table(), residuals(mr, val).table()
-                rtr = {ch: min(rtr[ch], t2[ch], key=lambda v: v["rms_um"]) for ch in rtr}
-                rva = {ch: min(rva[ch], v2[ch], key=lambda v: v["rms_um"]) for ch in rva}
+                rtr, rva = _better(rtr, t2), _better(rva, v2)
             g_train, g_val = _gain(rtr, tt), _gain(rva, tv)
             keep = max(g_val.values()) >= min_gain and min(g_val.values()) >= -max_loss
             effect = ag.describe_fitted(m, m.effects[-1])
