@@ -201,15 +201,14 @@ def test_closed_loop_pairs_are_the_ringing_of_the_loop():
     frequency at which the noise-free closed loop rings after a step (measured: 37.2 Hz, zeta 0.09
     on the flexible_y axis)."""
     from plant2 import flexible_y
-    from plant2.linear import closed_loop_pairs
+    from plant2.linear import closed_loop_pairs, linear_axis
     m = flexible_y(0.001)
     ax = m.axis("y")
     lo, hi = (closed_loop_pairs(ax, m.Ts, order=k, n=12000)[0] for k in (12, 18))
     assert abs(lo[0] - hi[0]) < 0.05 and abs(lo[1] - hi[1]) < 0.005
     assert 0.9 * ax.lock_hz <= hi[0] <= 1.1 * ax.lock_hz and 0.02 < hi[1] < 0.3
     # the step response of the same linear loop rings at the pair's damped frequency
-    lin = replace(ax, coulomb=0.0, static=0.0, resolution=1e-12, noise=0.0)
-    x = simulate_axis(lin, m.Ts, np.r_[np.zeros(10), np.full(1990, 1e-3)], np.random.default_rng(0))["motor"]
+    x = simulate_axis(linear_axis(ax), m.Ts, np.r_[np.zeros(10), np.full(1990, 1e-3)], np.random.default_rng(0))["motor"]
     w = np.diff(x[60:1000])
     spec = np.abs(np.fft.rfft((w - w.mean()) * np.hanning(w.size), 16 * w.size))
     fr = np.fft.rfftfreq(16 * w.size, m.Ts)

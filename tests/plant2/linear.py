@@ -17,6 +17,11 @@ from .params import Axis
 from .plant import simulate_axis
 
 
+def linear_axis(ax: Axis) -> Axis:
+    """The axis without its nonlinear and random parts: friction, backlash, quantisation, noise."""
+    return replace(ax, coulomb=0.0, static=0.0, backlash=0.0, resolution=1e-12, noise=0.0)
+
+
 def closed_loop_pairs(ax: Axis, Ts, order=18, n=40000, f_range=(10.0, 200.0), output="motor"):
     """Complex pole pairs of the friction-free closed loop, command -> ``output`` position.
 
@@ -33,7 +38,7 @@ def closed_loop_pairs(ax: Axis, Ts, order=18, n=40000, f_range=(10.0, 200.0), ou
     -------
     list of (frequency_hz, zeta), lowest frequency first
     """
-    lin = replace(ax, coulomb=0.0, static=0.0, backlash=0.0, resolution=1e-12, noise=0.0)
+    lin = linear_axis(ax)
     rng = np.random.default_rng(0)
     u = np.cumsum(rng.normal(0.0, 1e-3, n))
     u -= u[0]
