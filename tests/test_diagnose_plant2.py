@@ -93,3 +93,12 @@ def test_locked_refit_keeps_what_the_effect_does_not_feed():
     before, after = residuals(m, va).table(), residuals(composed, va).table()
     assert after["x"]["rms_um"] == pytest.approx(before["x"]["rms_um"], rel=1e-6)
     assert after["x.tool"]["rms_um"] <= 0.85 * before["x.tool"]["rms_um"]
+
+
+def test_a_best_shift_on_the_edge_of_the_range_is_no_dead_time():
+    from fdid_fmi.diagnose.delay import shift_statistic
+    assert shift_statistic([1.2, 1.0, 1.05]) == (1, 1.2, False)
+    # the free run still falls at the largest shift tried: no estimate, statistic 1
+    assert shift_statistic([1.3, 1.1, 1.0]) == (2, 1.0, True)
+    assert shift_statistic([1.0, 1.1, 1.2]) == (0, 1.0, False)        # no shift helps
+    assert shift_statistic([float("inf"), 1.0, 1.1]) == (1, 1.0, False)

@@ -347,7 +347,8 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     max_steps : at most this many effects added (per block of a combined model)
     maxiter : DE iterations of each refit
     exclude : channel names never used as inputs
-    max_delay : largest dead time tried (samples)
+    max_delay : largest command shift tried (samples); a best shift equal to it is not named
+        (:func:`.delay.shift_statistic`), so the largest dead time named is max_delay - 1
     progress : callable(str) for progress messages, optional
 
     Returns
