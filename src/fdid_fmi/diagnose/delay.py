@@ -6,7 +6,8 @@ commanded velocity (a measurement that lags by d samples leaves r ~ -d Ts v).
 Evidence 2 (the statistic): the model is refitted (pole search over the engine's default space,
 a dead time moves the poles far) with its command delayed by k = 0..``MAX_DELAY`` samples (a
 delay line in A/B, see augment.py), and each refit's FREE-RUN RMS error on the training trace,
-F_k, is computed. k* = argmin F_k; statistic F_0 / F_k* (1 when no shift helps). The LS objective
+F_k, is computed. k* = argmin F_k; statistic F_0 / F_k* (1 when no shift helps, or when k* is
+the largest shift tried: :func:`shift_statistic`). The LS objective
 is not used to compare shifts: the 3rd-order model mimics most of a dead time with its poles, the
 LS objective is nearly flat in k, while the free run still shows the shift it needs.
 
