@@ -122,9 +122,9 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
     if x0 is not None:
         x0 = np.clip(np.asarray(x0, float), lo, hi)
 
-    def local(x0):
+    def local(start):
         with np.errstate(invalid="ignore", over="ignore"):   # inf objectives (see _Counter)
-            res = optimize.minimize(cnt, x0, method="L-BFGS-B", bounds=bounds, options={"maxiter": 200})
+            res = optimize.minimize(cnt, start, method="L-BFGS-B", bounds=bounds, options={"maxiter": 200})
         return res.fun, res.x
 
     pts = []
@@ -134,7 +134,7 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
             X0 = qmc.scale(sob.random(int(2 ** np.ceil(np.log2(starts))))[:starts], lo, hi)
             if x0 is not None:
                 X0 = np.vstack([x0, X0[:-1]])
-            pts = [local(x0) for x0 in X0]
+            pts = [local(p) for p in X0]
             best = min(pts, key=lambda p: p[0])
         else:
             if method == "de":
@@ -148,8 +148,8 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
             best = (res.fun, res.x)
             if local_polish:
                 best = min(best, local(res.x), key=lambda p: p[0])
-            if x0 is not None:
-                best = min(best, (cnt(x0), x0), key=lambda p: p[0])
+            if x0 is not None and method == "direct":   # DE has x0 in its population and keeps the
+                best = min(best, (cnt(x0), x0), key=lambda p: p[0])   # better of trial and member
             pts.append(best)
     finally:
         cnt.close()
