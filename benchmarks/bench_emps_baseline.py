@@ -16,8 +16,9 @@ benchmarks/bench_accuracy.py), explicit structures through `identify_mimo(mimo_s
 integral_action=False))`, and a SysIdentPy FROLS polynomial NARX (degree 2, ERR ranking, number
 of terms by AIC, input and output lags chosen among LAGS by the lowest training free-run RMS;
 and a tuned one, ``TUNED``: degree 3, lags 8, 40 terms, data in metres, the best of an ad-hoc
-scan that saw the validation window, so an optimistic baseline), simulated in free run (`predict(..., steps_ahead=None)`: only its first max-lag output samples
-are taken from the measurement, as initial conditions). Models are simulated with
+scan that saw the validation window, so an optimistic baseline), simulated in free run
+(`predict(..., steps_ahead=None)`: only its first max-lag output samples are taken from the
+measurement, as initial conditions). Models are simulated with
 `fdid_fmi.simulate.simulate`.
 
     .venv/bin/pip install "sysidentpy>=0.9"     (the `bench` extra; without it the NARX rows are skipped.
@@ -53,7 +54,7 @@ EMPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "emps"
 T_SETTLED = 0.5        # s: training figure from here on (and over the whole record)
 T_FIRST_PULSE = 0.34   # s: PULSES record up to here (first pulse at 0.344 s)
 LAGS = (2, 4, 6, 8, 10, 15)  # NARX candidates, ylag = xlag = n samples (1 ms each)
-TUNED = {"degree": 3, "lag": 8, "n_terms": 40, "scale": 1e-3}   # see narx_rows
+TUNED = {"degree": 3, "lag": 8, "n_terms": 40, "scale": 1e-3}   # see narx_rows (scale 1e-3: metres)
 
 # ../shared/data/README.md, after A. Janot, M. Gautier, M. Brunot, "Data Set and Reference Models of
 # EMPS", 2019 Workshop on Nonlinear System Identification Benchmarks: closed-loop simulation of the
@@ -153,29 +154,26 @@ def narx_rows(train, quiet, test):
                      "train_all_um": rms_um(free_run(m, train) - train.act("x"))})
         print(f"  NARX lag {lag}: {scan[-1]['n_terms']} terms, train {scan[-1]['train_all_um']:.3f} µm", flush=True)
     best = min(scan, key=lambda r: r["train_all_um"])["lag"]
-    rows = []
-    for degree in (2, 1):
+
+    def row(name, degree, lag, n_terms=None, scale=1.0, **extra):
+        """One fitted NARX as a table row: settings, terms, fit CPU and the free-run figures."""
         c0 = time.process_time()
-        m = fit(best, degree)
+        m = fit(lag, degree, n_terms, scale)
         cpu = time.process_time() - c0
-        terms = [" * ".join(_term(c) for c in code if c) or "1" for code in m.final_model]
-        rows.append({"model": f"SysIdentPy NARX, degree {degree}, lags {best}", "kind": "NARX",
-                     "degree": degree, "ylag": best, "xlag": best, "n_terms": int(m.n_terms),
-                     "n_quadratic_terms": int(sum(np.count_nonzero(code) >= 2 for code in m.final_model)),
-                     "terms": terms, "theta": [float(v) for v in np.ravel(m.theta)], "fit_cpu_s": cpu,
-                     **figures(free_run(m, train), train, free_run(m, quiet), quiet, free_run(m, test), test)})
+        pred = [free_run(m, tr, scale) for tr in (train, quiet, test)]
+        return {"model": name, "kind": "NARX", "degree": degree, "ylag": lag, "xlag": lag,
+                "n_terms": int(m.n_terms), "scale": scale, **extra,
+                "n_quadratic_terms": int(sum(np.count_nonzero(code) >= 2 for code in m.final_model)),
+                "terms": [" * ".join(_term(c) for c in code if c) or "1" for code in m.final_model],
+                "theta": [float(v) for v in np.ravel(m.theta)], "fit_cpu_s": cpu,
+                **figures(pred[0], train, pred[1], quiet, pred[2], test)}
+
+    rows = [row(f"SysIdentPy NARX, degree {degree}, lags {best}", degree, best) for degree in (2, 1)]
     # a tuned NARX: the best of ~40 configurations an ad-hoc scan tried (degree 2-4, lags 2-15,
     # AIC or fixed term counts, mm or m, FROLS or AOLS), picked with the validation window in view,
     # so an optimistic baseline; degree 3 needs metres here (in mm its term choice free-runs away)
-    c0 = time.process_time()
-    m = fit(TUNED["lag"], TUNED["degree"], TUNED["n_terms"], TUNED["scale"])
-    cpu = time.process_time() - c0
-    p = {k: free_run(m, tr, TUNED["scale"]) for k, tr in (("train", train), ("quiet", quiet), ("test", test))}
-    rows.append({"model": f"SysIdentPy NARX, degree {TUNED['degree']}, lags {TUNED['lag']}, "
-                          f"{TUNED['n_terms']} terms, metres (tuned)", "kind": "NARX", **TUNED,
-                 "n_quadratic_terms": int(sum(np.count_nonzero(code) >= 2 for code in m.final_model)),
-                 "fit_cpu_s": cpu,
-                 **figures(p["train"], train, p["quiet"], quiet, p["test"], test)})
+    rows.append(row(f"SysIdentPy NARX, degree {TUNED['degree']}, lags {TUNED['lag']}, {TUNED['n_terms']} "
+                    "terms, metres (tuned)", **TUNED, tuned=True))
     print(f"  {rows[-1]['model']}: {rows[-1]['train_all_um']:.3f} / {rows[-1]['pulses_before_1st_um']:.3f} µm",
           flush=True)
     settings = {"sysidentpy": sysidentpy.__version__, "algorithm": "FROLS (ERR ranking)",
