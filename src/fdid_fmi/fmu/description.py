@@ -120,7 +120,7 @@ def model_description_fmi2(layout, guid, model_identifier, description=None, sou
         "generationTool": f"fdid-fmi {__version__}", "generationDateAndTime": stamp,
         "variableNamingConvention": "flat", "numberOfEventIndicators": "0"}, what="description")
     cs = _el(root, "CoSimulation", {
-        "modelIdentifier": model_identifier, "canHandleVariableCommunicationStepSize": "true",
+        "modelIdentifier": model_identifier, "canHandleVariableCommunicationStepSize": "false",
         "canInterpolateInputs": "false", "maxOutputDerivativeOrder": "0",
         "canRunAsynchronuously": "false", "canBeInstantiatedOnlyOncePerProcess": "false",
         "canNotUseMemoryManagementFunctions": "false", "canGetAndSetFMUstate": "true",
@@ -166,7 +166,7 @@ def model_description_fmi3(layout, guid, model_identifier, description=None):
         "description": desc, "generationTool": f"fdid-fmi {__version__}",
         "generationDateAndTime": stamp, "variableNamingConvention": "flat"}, what="description")
     _el(root, "CoSimulation", {
-        "modelIdentifier": model_identifier, "canHandleVariableCommunicationStepSize": "true",
+        "modelIdentifier": model_identifier, "canHandleVariableCommunicationStepSize": "false",
         "canGetAndSetFMUState": "true", "canSerializeFMUState": "true",
         "providesDirectionalDerivatives": "false", "providesAdjointDerivatives": "false",
         "providesIntermediateUpdate": "false", "canReturnEarlyAfterIntermediateUpdate": "false",

@@ -75,7 +75,7 @@ int fdid_begin(FdidInstance *I, const char *fn, int mask) {
 
 int fdid_set_debug_logging(FdidInstance *I, const char *fn, int on, size_t n, const char *const categories[]) {
     size_t i;
-    int k;
+    int k, status = FDID_OK;
     if (!I || I->mode == FDID_ST_FATAL) return FDID_ERROR;
     if (n == 0) {
         for (k = 0; k < FDID_N_CAT; k++) I->log_on[k] = on ? 1 : 0;
@@ -94,10 +94,13 @@ int fdid_set_debug_logging(FdidInstance *I, const char *fn, int on, size_t n, co
                 found = 1;
             }
         }
-        if (!found)
-            return fdid_fail(I, "%s: unknown log category '%s'", fn, categories[i] ? categories[i] : "(null)");
+        if (!found) {   /* the master's mistake, but no reason to stop the simulation */
+            fdid_log(I, FDID_WARNING, FDID_CAT_WARNING, "%s: unknown log category '%s' ignored", fn,
+                     categories[i] ? categories[i] : "(null)");
+            status = FDID_WARNING;
+        }
     }
-    return FDID_OK;
+    return status;
 }
 
 /* ------------------------------------------------------------------ memory, life cycle */
@@ -148,9 +151,14 @@ void fdid_free_instance(FdidInstance *I, const char *fn) {
 }
 
 /* ------------------------------------------------------------------ state machine */
-int fdid_set_start_time(FdidInstance *I, const char *fn, double start_time) {
+int fdid_setup_experiment(FdidInstance *I, const char *fn, double start_time, int stop_defined, double stop_time) {
     if (!fdid_is_finite(start_time)) return fdid_fail(I, "%s: start time is not finite", fn);
+    if (stop_defined && !(fdid_is_finite(stop_time) && stop_time >= start_time))
+        return fdid_fail(I, "%s: stop time %g s must be finite and not before the start time %g s", fn, stop_time,
+                         start_time);
     I->start_time = start_time;
+    I->stop_defined = stop_defined != 0;
+    I->stop_time = stop_defined ? stop_time : 0.0;
     return FDID_OK;
 }
 
@@ -169,6 +177,7 @@ void fdid_terminate(FdidInstance *I) { I->mode = FDID_ST_TERMINATED; }
 void fdid_reset(FdidInstance *I) {
     fdid_state_defaults(&I->s);
     I->start_time = 0.0;
+    I->stop_defined = 0;
     I->mode = FDID_ST_INSTANTIATED;
 }
 
@@ -333,7 +342,8 @@ int fdid_set_state(FdidInstance *I, const char *fn, const void *state) {
 }
 
 int fdid_free_state(FdidInstance *I, const char *fn, void **state) {
-    if (!state) return fdid_fail(I, "%s: NULL argument", fn);
+    (void)fn;
+    if (!state) return FDID_OK;   /* "If a null pointer is provided, the call is ignored." */
     fdid_free(I, *state);
     *state = NULL;
     return FDID_OK;
@@ -405,28 +415,41 @@ int fdid_deserialize(FdidInstance *I, const char *fn, const void *bytes, size_t 
 }
 
 /* ------------------------------------------------------------------ co-simulation */
+static double absd(double x) { return x < 0.0 ? -x : x; }
+
+/* how far a master's time may be off the sample grid at time t: a millionth of a sample, plus
+ * the rounding of grid times computed in doubles (relative 1e-9) */
+static double grid_tolerance(double t) { return 1e-6 * fdid_model.Ts + 1e-9 * absd(t); }
+
 int fdid_do_step(FdidInstance *I, const char *fn, double t_comm, double h) {
-    double Ts = fdid_model.Ts, t = fdid_time(I), q, tol;
+    double Ts = fdid_model.Ts, t = fdid_time(I), t_end, q, off;
     long long k, nsteps;
     if (!fdid_is_finite(h) || !(h > 0.0))
         return fdid_fail(I, "%s: communication step size must be a positive number, got %g s", fn, h);
     if (!fdid_is_finite(t_comm)) return fdid_fail(I, "%s: currentCommunicationPoint is not finite", fn);
-    q = h / Ts;
-    if (q > 1e15) return fdid_fail(I, "%s: communication step size %g s is too large", fn, h);
-    nsteps = (long long)(q + 0.5);
+    if (absd(t_comm - t) > grid_tolerance(t))
+        return fdid_fail(I, "%s: currentCommunicationPoint %.17g s differs from the FMU time %.17g s", fn, t_comm,
+                         t);
+    /* the step ends on the sample grid start + n Ts, n taken from the END time: masters compute
+     * h = t_next - t_comm from grid times, whose rounding grows with |t|, not with h */
+    t_end = t_comm + h;
+    q = (t_end - I->start_time) / Ts;
+    if (!(q < 1e15)) return fdid_fail(I, "%s: communication step size %g s is too large", fn, h);
+    nsteps = (long long)(q + 0.5) - I->s.f.steps;
+    off = t_end - (I->start_time + (double)(I->s.f.steps + nsteps) * Ts);
+    if (nsteps < 1 || absd(off) > grid_tolerance(t_end))
+        return fdid_fail(I, "%s: communication step size %.17g s is not an integer multiple of the "
+                            "model sample time Ts = %.17g s (the step would end %.3g s off the sample grid)",
+                         fn, h, Ts, off);
     if (nsteps > FDID_MAX_STEPS_PER_DOSTEP)
         return fdid_fail(I, "%s: communication step size %g s would take %.0f internal steps of Ts = %g s; "
                             "at most %.0f are allowed in one doStep (use smaller communication steps)",
                          fn, h, (double)nsteps, Ts, (double)FDID_MAX_STEPS_PER_DOSTEP);
     if (I->s.f.steps > FDID_MAX_TOTAL_STEPS - nsteps)
         return fdid_fail(I, "%s: the FMU time would pass the largest supported step count", fn);
-    if (nsteps < 1 || (h - (double)nsteps * Ts > 1e-9 * h) || ((double)nsteps * Ts - h > 1e-9 * h))
-        return fdid_fail(I, "%s: communication step size %.17g s is not an integer multiple of the "
-                            "model sample time Ts = %.17g s (relative tolerance 1e-9)", fn, h, Ts);
-    tol = 1e-6 * Ts + 1e-9 * (t < 0 ? -t : t);
-    if (t_comm - t > tol || t - t_comm > tol)
-        return fdid_fail(I, "%s: currentCommunicationPoint %.17g s differs from the FMU time %.17g s", fn, t_comm,
-                         t);
+    if (I->stop_defined && t_end > I->stop_time + grid_tolerance(t_end))
+        return fdid_fail(I, "%s: the step would end at %.17g s, past the stop time %.17g s", fn, t_end,
+                         I->stop_time);
     for (k = 0; k < nsteps; k++) fdid_advance(&I->s);
     I->s.f.started = 1;
     return FDID_OK;

@@ -31,6 +31,8 @@ enum {
 };
 #define FDID_ANY_STATE (FDID_ST_INSTANTIATED | FDID_ST_INIT | FDID_ST_STEP | FDID_ST_TERMINATED | FDID_ST_ERROR)
 #define FDID_GET_STATES (FDID_ST_INIT | FDID_ST_STEP | FDID_ST_TERMINATED | FDID_ST_ERROR)
+/* FMI 3.0 also allows getting (start) values in the instantiated state (section 4.2.1) */
+#define FDID_GET_STATES_FMI3 (FDID_GET_STATES | FDID_ST_INSTANTIATED)
 #define FDID_SET_STATES (FDID_ST_INSTANTIATED | FDID_ST_INIT | FDID_ST_STEP)
 
 /* log categories (declared in modelDescription.xml) */
@@ -57,6 +59,8 @@ struct FdidInstance {
     int log_on[FDID_N_CAT];
     int mode;                                         /* FDID_ST_* */
     double start_time;                                /* s */
+    int stop_defined;                                 /* the master gave a stop time */
+    double stop_time;                                 /* s; doStep may not pass it */
     FdidState s;
 };
 
@@ -76,7 +80,8 @@ FdidInstance *fdid_instantiate(const FdidInstance *proto, size_t size, const cha
 void fdid_free_instance(FdidInstance *I, const char *fn);
 void *fdid_alloc(const FdidInstance *I, size_t n, size_t size);
 void fdid_free(const FdidInstance *I, void *p);
-int fdid_set_start_time(FdidInstance *I, const char *fn, double start_time);
+/* start time, and the stop time doStep may not pass (when stop_defined) */
+int fdid_setup_experiment(FdidInstance *I, const char *fn, double start_time, int stop_defined, double stop_time);
 void fdid_enter_initialization(FdidInstance *I);
 void fdid_exit_initialization(FdidInstance *I);
 void fdid_terminate(FdidInstance *I);

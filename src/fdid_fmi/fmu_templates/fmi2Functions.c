@@ -106,9 +106,7 @@ FMI2_Export fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranc
     CHECK(c, "fmi2SetupExperiment", FDID_ST_INSTANTIATED)
     (void)toleranceDefined;
     (void)tolerance;
-    (void)stopTimeDefined;
-    (void)stopTime;
-    return (fmi2Status)fdid_set_start_time(I, "fmi2SetupExperiment", startTime);
+    return (fmi2Status)fdid_setup_experiment(I, "fmi2SetupExperiment", startTime, stopTimeDefined, stopTime);
 }
 
 FMI2_Export fmi2Status fmi2EnterInitializationMode(fmi2Component c) {

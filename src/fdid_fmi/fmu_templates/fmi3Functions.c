@@ -119,8 +119,9 @@ FMI3_Export fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Bo
                                                    fmi3Float64 tolerance, fmi3Float64 startTime,
                                                    fmi3Boolean stopTimeDefined, fmi3Float64 stopTime) {
     CHECK(instance, "fmi3EnterInitializationMode", FDID_ST_INSTANTIATED)
-    (void)toleranceDefined; (void)tolerance; (void)stopTimeDefined; (void)stopTime;
-    if (fdid_set_start_time(I, "fmi3EnterInitializationMode", startTime) != FDID_OK) return fmi3Error;
+    (void)toleranceDefined; (void)tolerance;
+    if (fdid_setup_experiment(I, "fmi3EnterInitializationMode", startTime, stopTimeDefined, stopTime) != FDID_OK)
+        return fmi3Error;
     fdid_enter_initialization(I);
     return fmi3OK;
 }
@@ -152,7 +153,7 @@ FMI3_Export fmi3Status fmi3Reset(fmi3Instance instance) {
 FMI3_Export fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                       size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
     size_t i;
-    CHECK(instance, "fmi3GetFloat64", FDID_GET_STATES)
+    CHECK(instance, "fmi3GetFloat64", FDID_GET_STATES_FMI3)
     if (nValues != nValueReferences) return FAIL("fmi3GetFloat64: nValues must equal nValueReferences");
     if (nValueReferences > 0 && (!valueReferences || !values)) return FAIL("fmi3GetFloat64: NULL argument");
     for (i = 0; i < nValueReferences; i++) {
@@ -179,7 +180,7 @@ FMI3_Export fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueRefe
                                       size_t nValueReferences, fmi3Boolean values[], size_t nValues) {
     size_t i;
     int b;
-    CHECK(instance, "fmi3GetBoolean", FDID_GET_STATES)
+    CHECK(instance, "fmi3GetBoolean", FDID_GET_STATES_FMI3)
     if (nValues != nValueReferences) return FAIL("fmi3GetBoolean: nValues must equal nValueReferences");
     if (nValueReferences > 0 && (!valueReferences || !values)) return FAIL("fmi3GetBoolean: NULL argument");
     for (i = 0; i < nValueReferences; i++) {
@@ -213,7 +214,7 @@ static fmi3Status no_vars(fmi3Instance instance, const char *fn, int mask, const
     FMI3_Export fmi3Status fmi3Get##N(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, \
                                       T values[], size_t nValues) {                                   \
         (void)values; (void)nValues;                                                                  \
-        return no_vars(instance, "fmi3Get" #N, FDID_GET_STATES, vr, nvr);                                  \
+        return no_vars(instance, "fmi3Get" #N, FDID_GET_STATES_FMI3, vr, nvr);                             \
     }
 #define NO_SET(T, N)                                                                                   \
     FMI3_Export fmi3Status fmi3Set##N(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, \
@@ -232,7 +233,7 @@ NO_SET(fmi3UInt64, UInt64) NO_SET(fmi3String, String)
 FMI3_Export fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                                      size_t valueSizes[], fmi3Binary values[], size_t nValues) {
     (void)valueSizes; (void)values; (void)nValues;
-    return no_vars(instance, "fmi3GetBinary", FDID_GET_STATES, vr, nvr);
+    return no_vars(instance, "fmi3GetBinary", FDID_GET_STATES_FMI3, vr, nvr);
 }
 
 FMI3_Export fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,

@@ -1,0 +1,114 @@
+"""Calls the FMI 2.0 / 3.0 specifications allow a co-simulation master to make, on both FMU
+versions: long runs, stop times off the sample grid, getting start values before
+initialisation (FMI 3), freeing a NULL state, the stop time, an unknown log category."""
+import ctypes
+
+import numpy as np
+import pytest
+from fmpy import read_model_description, simulate_fmu
+from fmpy.fmi1 import FMICallException
+
+import fmu_support as fs
+from fdid_fmi.fmu import export_fmu
+from fdid_fmi.fmu.validate import FmuRunner
+from fdid_fmi.simulate import simulate
+
+
+@pytest.fixture(scope="module")
+def siso(tmp_path_factory):
+    d = tmp_path_factory.mktemp("master_calls")
+    m = fs.siso_model()
+    return m, {v: export_fmu(m, d / f"s{v}.fmu", fmi_version=v) for v in (2, 3)}
+
+
+@pytest.fixture(params=[2, 3])
+def runner(request, siso):
+    m, fmus = siso
+    r = FmuRunner(fmus[request.param])
+    yield m, r, request.param
+    r.close()
+
+
+def _start(r, version, start=0.0, stop=None):
+    f = r.fmu
+    f.instantiate()
+    if version == 2:
+        f.setupExperiment(startTime=start, stopTime=stop)
+        f.enterInitializationMode()
+    else:
+        f.enterInitializationMode(startTime=start, stopTime=stop)
+    f.exitInitializationMode()
+    return f
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_long_runs_keep_stepping(siso, version):
+    """fmpy computes each step as the difference of two grid times; at t = 8192 s their rounding
+    (~1e-12 s) exceeded the former tolerance relative to h and the step was refused."""
+    m, fmus = siso
+    cmd = np.array([(8192.0, 1.0), (8192.02, 1.2)], dtype=[("time", float), ("x_x_cmd", float)])
+    res = simulate_fmu(str(fmus[version]), start_time=8192.0, stop_time=8192.02, output_interval=m.Ts,
+                       input=cmd, output=["x_x"])
+    assert len(res) == 21 and np.isfinite(res["x_x"]).all()
+    assert res["time"][-1] == pytest.approx(8192.02, abs=1e-9)
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_stop_time_off_the_grid_ends_at_the_last_full_step(siso, version):
+    """The FMU declares canHandleVariableCommunicationStepSize = false (it steps in whole
+    samples), so fmpy does not shorten the last step to reach a stop time between samples."""
+    m, fmus = siso
+    md = read_model_description(str(fmus[version]))
+    assert md.coSimulation.canHandleVariableCommunicationStepSize is False
+    res = simulate_fmu(str(fmus[version]), stop_time=10.5 * m.Ts, output_interval=m.Ts, output=["x_x"])
+    assert res["time"][-1] == pytest.approx(10 * m.Ts)
+    cmd = np.zeros(11)   # the FMU's command stays at its start value 0: the model at rest
+    ref = simulate(m, {"x": cmd}, Ts=m.Ts)
+    assert np.abs(res["x_x"] - ref.axes["x"]["position"]).max() <= 1e-12
+
+
+def test_step_past_the_stop_time_is_an_error(runner):
+    m, r, version = runner
+    f = _start(r, version, stop=2 * m.Ts)
+    f.doStep(0.0, m.Ts)
+    f.doStep(m.Ts, m.Ts)
+    with pytest.raises(FMICallException):
+        f.doStep(2 * m.Ts, m.Ts)
+
+
+def test_fmi3_gives_start_values_before_initialisation(siso):
+    m, fmus = siso
+    r = FmuRunner(fmus[3])
+    try:
+        f = r.fmu
+        f.instantiate()
+        vt = f.getFloat64([r.vr("x_v_tilde")])[0]
+        assert vt == m.inputs[m.input_index("friction", "x")].params["v_tilde"]
+        f.enterInitializationMode(startTime=0.0)   # the instance is still usable
+        f.exitInitializationMode()
+        f.doStep(0.0, m.Ts)
+    finally:
+        r.close()
+
+
+def test_freeing_a_null_state_is_ignored(runner):
+    m, r, version = runner
+    f = _start(r, version)
+    free = getattr(f.dll, "fmi2FreeFMUstate" if version == 2 else "fmi3FreeFMUState")
+    free.restype = ctypes.c_int
+    free.argtypes = [ctypes.c_void_p, ctypes.c_void_p]
+    assert free(f.component, None) == 0
+    held = ctypes.c_void_p(None)
+    assert free(f.component, ctypes.byref(held)) == 0
+    f.doStep(0.0, m.Ts)                          # not in the error state
+
+
+def test_an_unknown_log_category_is_a_warning(runner):
+    m, r, version = runner
+    f = _start(r, version)
+    fn = getattr(f.dll, f"fmi{version}SetDebugLogging")
+    fn.restype = ctypes.c_int
+    fn.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_size_t, ctypes.POINTER(ctypes.c_char_p)]
+    cats = (ctypes.c_char_p * 1)(b"noSuchCategory")
+    assert fn(f.component, 1, 1, cats) == 1      # fmi2Warning / fmi3Warning
+    f.doStep(0.0, m.Ts)                          # not in the error state
