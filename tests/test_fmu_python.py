@@ -57,3 +57,16 @@ def test_python_and_c_fmus_agree_bit_for_bit_even_in_stick_slip(tmp_path):
 def test_python_backend_is_fmi2_only(tmp_path):
     with pytest.raises(InputError, match="FMI 2.0"):
         export_fmu(fs.siso_model(), tmp_path / "p.fmu", backend="python", fmi_version=3)
+
+
+def test_python_backend_steps_like_the_c_fmu_on_long_runs_and_off_grid_stops(tmp_path):
+    """The step rule of the C FMU (test_fmu_master_calls.py): the end of a step is put on the
+    sample grid from its end time, and the FMU steps in whole samples only."""
+    from fmpy import read_model_description, simulate_fmu
+    m = fs.siso_model()
+    fmu = str(export_fmu(m, tmp_path / "p.fmu", backend="python"))
+    assert read_model_description(fmu).coSimulation.canHandleVariableCommunicationStepSize is False
+    res = simulate_fmu(fmu, start_time=8192.0, stop_time=8192.02, output_interval=m.Ts, output=["x_x"])
+    assert len(res) == 21 and np.isfinite(res["x_x"]).all()
+    res = simulate_fmu(fmu, stop_time=10.5 * m.Ts, output_interval=m.Ts, output=["x_x"])
+    assert res["time"][-1] == pytest.approx(10 * m.Ts)

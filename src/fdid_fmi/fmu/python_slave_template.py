@@ -35,6 +35,7 @@ class FdidSlaveBase(Fmi2Slave):
         self._lay = CompiledModel(model)
         self._st = Stepper(self._lay)
         self._started = False
+        self._start_time, self._stop_time, self._steps = 0.0, None, 0
         for v in self._L["variables"]:
             self._register(v)
 
@@ -88,15 +89,26 @@ class FdidSlaveBase(Fmi2Slave):
     def exit_initialization_mode(self):
         self._st.outputs()
 
+    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        self._start_time, self._stop_time = float(start_time), stop_time
+
     def do_step(self, current_time, step_size):
-        n = int(round(step_size / self.Ts))
-        if n < 1 or abs(step_size - n * self.Ts) > 1e-9 * step_size:
+        # as the C FMU (fdid_instance.c, fdid_do_step): the step ends on the sample grid, its
+        # index taken from the end time (grid times computed in doubles round with |t|)
+        end = current_time + step_size
+        tol = 1e-6 * self.Ts + 1e-9 * abs(end)
+        k = round((end - self._start_time) / self.Ts)
+        n = k - self._steps
+        if n < 1 or abs(end - (self._start_time + k * self.Ts)) > tol:
             raise ValueError(f"communication step size {step_size!r} s is not an integer multiple of "
                              f"the model sample time Ts = {self.Ts!r} s")
         if n > MAX_STEPS:
             raise ValueError(f"a communication step of {n} internal steps exceeds {MAX_STEPS}")
+        if self._stop_time is not None and end > self._stop_time + tol:
+            raise ValueError(f"the step would end at {end!r} s, past the stop time {self._stop_time!r} s")
         for _ in range(n):
             self._st.advance()
+        self._steps = k
         self._started = True
         return True
 
@@ -107,6 +119,7 @@ class FdidSlaveBase(Fmi2Slave):
         cs_py = root.find("CoSimulation")
         idx = list(mine).index(cs_mine)
         mine.remove(cs_mine)
+        cs_py.set("canHandleVariableCommunicationStepSize", "false")   # whole samples only
         mine.insert(idx, cs_py)
         mine.set("generationTool", root.get("generationTool") + " + fdid-fmi")
         return mine
