@@ -25,8 +25,9 @@ CHANGES = {("m01", "x"): "friction", ("m02", "y"): "backlash"}
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory):
     root = tmp_path_factory.mktemp("fleet")
+    # the fleet, not the identification, is under test: the rigid structure and a short search
     man = write_virtual_fleet(root / "data", n_machines=2, changes=CHANGES, n_moves=4, diagnose=False,
-                              extra_options={"structure": "rigid"})   # the fleet, not the structure choice, under test
+                              extra_options={"structure": "rigid", "maxiter": 8})
     # night 1 plus three broken entries: a missing file, an unknown column, a bad option
     text = man[1].read_text() + """
 [[entry]]
