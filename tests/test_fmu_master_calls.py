@@ -67,6 +67,25 @@ def test_stop_time_off_the_grid_ends_at_the_last_full_step(siso, version):
     assert np.abs(res["x_x"] - ref.axes["x"]["position"]).max() <= 1e-12
 
 
+@pytest.mark.parametrize("start", [0.0, 1e5, 1.7e9])     # 1.7e9 s: a wall-clock start time
+def test_off_grid_steps_are_refused_at_any_time(runner, start):
+    """The tolerance for the rounding of grid times grows with |t| but stays below a hundredth
+    of a sample, so a step that is not a whole number of samples is refused at any time."""
+    m, r, version = runner
+    f = _start(r, version, start=start)
+    f.doStep(start, m.Ts)
+    t = start + m.Ts
+    state = f.getFMUState() if version == 3 else f.getFMUstate()
+    for h in (0.6 * m.Ts, 1.09 * m.Ts, 1.45 * m.Ts, 2e7 * m.Ts):   # the last: more than 1e7 steps
+        with pytest.raises(FMICallException):
+            f.doStep(t, h)
+        (f.setFMUState if version == 3 else f.setFMUstate)(state)   # leaves the error state
+    with pytest.raises(FMICallException):
+        f.doStep(t + 1.0, m.Ts)                  # not the FMU's time
+    (f.setFMUState if version == 3 else f.setFMUstate)(state)
+    f.doStep(t, 3 * m.Ts)
+
+
 def test_step_past_the_stop_time_is_an_error(runner):
     m, r, version = runner
     f = _start(r, version, stop=2 * m.Ts)

@@ -1,4 +1,6 @@
 """pythonfmu backend: builds, validates and runs in fmpy with the reference semantics."""
+import subprocess
+import sys
 import zipfile
 
 import numpy as np
@@ -70,3 +72,26 @@ def test_python_backend_steps_like_the_c_fmu_on_long_runs_and_off_grid_stops(tmp
     assert len(res) == 21 and np.isfinite(res["x_x"]).all()
     res = simulate_fmu(fmu, stop_time=10.5 * m.Ts, output_interval=m.Ts, output=["x_x"])
     assert res["time"][-1] == pytest.approx(10 * m.Ts)
+    # refusals (off grid, wrong time, past the stop time) in a child process: pythonfmu turns
+    # the slave's exception into fmi2Fatal, and after freeing such an instance a later garbage
+    # collection crashed the host (pythonfmu 0.7.0), so the child leaves with os._exit
+    child = f"""
+import os
+import shutil
+from fdid_fmi.fmu.validate import FmuRunner
+for t, h, stop in ((0.0, 1.45 * {m.Ts!r}, None), (1.0, {m.Ts!r}, None), (0.0, 3 * {m.Ts!r}, 2 * {m.Ts!r})):
+    r = FmuRunner({fmu!r})
+    r.fmu.instantiate()
+    r.fmu.setupExperiment(startTime=0.0, stopTime=stop)
+    r.fmu.enterInitializationMode()
+    r.fmu.exitInitializationMode()
+    try:
+        r.fmu.doStep(t, h)
+        print("stepped", flush=True)
+    except Exception as exc:
+        print("refused", getattr(exc, "status", None), flush=True)
+    shutil.rmtree(r._dir, ignore_errors=True)   # the extracted FMU (its library stays mapped)
+os._exit(0)
+"""
+    out = subprocess.run([sys.executable, "-c", child], capture_output=True, text=True, timeout=120)
+    assert out.stdout.split() == ["refused", "4"] * 3, (out.stdout, out.stderr[-2000:])

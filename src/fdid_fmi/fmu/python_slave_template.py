@@ -7,6 +7,7 @@ and the C FMU give the same doubles. The model and the variable table are read f
 resources/fdid_layout.json.
 """
 import json
+import math
 import os
 import xml.etree.ElementTree as ET
 
@@ -90,21 +91,30 @@ class FdidSlaveBase(Fmi2Slave):
         self._st.outputs()
 
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        if stop_time is not None and not stop_time >= start_time:
+            raise ValueError(f"stop time {stop_time!r} s is before the start time {start_time!r} s")
         self._start_time, self._stop_time = float(start_time), stop_time
+
+    def _tolerance(self, t):
+        # fdid_instance.c, grid_tolerance: a millionth of a sample plus the rounding of grid
+        # times (relative 1e-9, at most a hundredth of a sample)
+        return 1e-6 * self.Ts + min(1e-9 * abs(t), 1e-2 * self.Ts)
 
     def do_step(self, current_time, step_size):
         # as the C FMU (fdid_instance.c, fdid_do_step): the step ends on the sample grid, its
         # index taken from the end time (grid times computed in doubles round with |t|)
+        now = self._start_time + self._steps * self.Ts
+        if abs(current_time - now) > self._tolerance(now):
+            raise ValueError(f"currentCommunicationPoint {current_time!r} s differs from the FMU time {now!r} s")
         end = current_time + step_size
-        tol = 1e-6 * self.Ts + 1e-9 * abs(end)
-        k = round((end - self._start_time) / self.Ts)
+        k = math.floor((end - self._start_time) / self.Ts + 0.5)
         n = k - self._steps
-        if n < 1 or abs(end - (self._start_time + k * self.Ts)) > tol:
+        if n < 1 or abs(end - (self._start_time + k * self.Ts)) > self._tolerance(end):
             raise ValueError(f"communication step size {step_size!r} s is not an integer multiple of "
                              f"the model sample time Ts = {self.Ts!r} s")
         if n > MAX_STEPS:
             raise ValueError(f"a communication step of {n} internal steps exceeds {MAX_STEPS}")
-        if self._stop_time is not None and end > self._stop_time + tol:
+        if self._stop_time is not None and end > self._stop_time + self._tolerance(end):
             raise ValueError(f"the step would end at {end!r} s, past the stop time {self._stop_time!r} s")
         for _ in range(n):
             self._st.advance()

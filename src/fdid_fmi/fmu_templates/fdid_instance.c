@@ -418,8 +418,12 @@ int fdid_deserialize(FdidInstance *I, const char *fn, const void *bytes, size_t 
 static double absd(double x) { return x < 0.0 ? -x : x; }
 
 /* how far a master's time may be off the sample grid at time t: a millionth of a sample, plus
- * the rounding of grid times computed in doubles (relative 1e-9) */
-static double grid_tolerance(double t) { return 1e-6 * fdid_model.Ts + 1e-9 * absd(t); }
+ * the rounding of grid times computed in doubles (relative 1e-9, at most a hundredth of a
+ * sample: an off-grid step is refused at any t) */
+static double grid_tolerance(double t) {
+    double rounding = 1e-9 * absd(t), cap = 1e-2 * fdid_model.Ts;
+    return 1e-6 * fdid_model.Ts + (rounding < cap ? rounding : cap);
+}
 
 int fdid_do_step(FdidInstance *I, const char *fn, double t_comm, double h) {
     double Ts = fdid_model.Ts, t = fdid_time(I), t_end, q, off;
@@ -433,8 +437,11 @@ int fdid_do_step(FdidInstance *I, const char *fn, double t_comm, double h) {
     /* the step ends on the sample grid start + n Ts, n taken from the END time: masters compute
      * h = t_next - t_comm from grid times, whose rounding grows with |t|, not with h */
     t_end = t_comm + h;
-    q = (t_end - I->start_time) / Ts;
-    if (!(q < 1e15)) return fdid_fail(I, "%s: communication step size %g s is too large", fn, h);
+    q = (t_end - I->start_time) / Ts;   /* the sample index the step ends on */
+    if (!(q > 0.0 && q < (double)FDID_MAX_TOTAL_STEPS))
+        return fdid_fail(I, "%s: the step would end at %.17g s, outside the FMU's time range (%.0f samples "
+                            "of Ts = %g s from the start time %.17g s)", fn, t_end, (double)FDID_MAX_TOTAL_STEPS,
+                         Ts, I->start_time);
     nsteps = (long long)(q + 0.5) - I->s.f.steps;
     off = t_end - (I->start_time + (double)(I->s.f.steps + nsteps) * Ts);
     if (nsteps < 1 || absd(off) > grid_tolerance(t_end))
@@ -445,8 +452,6 @@ int fdid_do_step(FdidInstance *I, const char *fn, double t_comm, double h) {
         return fdid_fail(I, "%s: communication step size %g s would take %.0f internal steps of Ts = %g s; "
                             "at most %.0f are allowed in one doStep (use smaller communication steps)",
                          fn, h, (double)nsteps, Ts, (double)FDID_MAX_STEPS_PER_DOSTEP);
-    if (I->s.f.steps > FDID_MAX_TOTAL_STEPS - nsteps)
-        return fdid_fail(I, "%s: the FMU time would pass the largest supported step count", fn);
     if (I->stop_defined && t_end > I->stop_time + grid_tolerance(t_end))
         return fdid_fail(I, "%s: the step would end at %.17g s, past the stop time %.17g s", fn, t_end,
                          I->stop_time);
