@@ -81,9 +81,7 @@ import shutil
 from fdid_fmi.fmu.validate import FmuRunner
 for t, h, stop in ((0.0, 1.45 * {m.Ts!r}, None), (1.0, {m.Ts!r}, None), (0.0, 3 * {m.Ts!r}, 2 * {m.Ts!r})):
     r = FmuRunner({fmu!r})
-    r.fmu.instantiate()
-    r.fmu.setupExperiment(startTime=0.0, stopTime=stop)
-    r.fmu.enterInitializationMode()
+    r.start(0.0, stop)
     r.fmu.exitInitializationMode()
     try:
         r.fmu.doStep(t, h)

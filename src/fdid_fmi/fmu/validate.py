@@ -149,6 +149,17 @@ class FmuRunner:
             pass
         shutil.rmtree(self._dir, ignore_errors=True)
 
+    def start(self, start_time=0.0, stop_time=None):
+        """Instantiate and enter initialization mode (FMI 2: through fmi2SetupExperiment)."""
+        f = self.fmu
+        if self.version.startswith("3"):
+            f.instantiate(loggingOn=False)
+            f.enterInitializationMode(startTime=start_time, stopTime=stop_time)
+        else:
+            f.instantiate(loggingOn=False, callbacks=self._logger)
+            f.setupExperiment(startTime=start_time, stopTime=stop_time)
+            f.enterInitializationMode()
+
     def run(self, inputs, n, Ts, outputs, parameters=None, booleans=None, comm_step=1, start_time=0.0,
             read="before"):
         """Simulate ``n`` samples.
@@ -175,13 +186,7 @@ class FmuRunner:
         out_vr = [self.vr(k) for k in outputs]
         setr = f.setFloat64 if three else f.setReal
         getr = f.getFloat64 if three else f.getReal
-        if three:
-            f.instantiate(loggingOn=False)
-            f.enterInitializationMode(startTime=start_time)
-        else:
-            f.instantiate(loggingOn=False, callbacks=self._logger)
-            f.setupExperiment(startTime=start_time)
-            f.enterInitializationMode()
+        self.start(start_time)
         for k, v in (parameters or {}).items():
             setr([self.vr(k)], [float(v)])
         for k, v in (booleans or {}).items():
