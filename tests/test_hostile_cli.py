@@ -191,6 +191,15 @@ def test_orphan_temp_file_of_a_killed_writer_is_removed(tmp_path):
     (["--real-hz", "5:1"], ["--real-hz", "LO < HI"]),
     (["--lock-complex", "abc"], ["--lock-complex"]),
     (["--external", "a b"], ["--external", "not a name"]),
+    # an option the method does not read would be silently ignored: refused instead
+    (["--external", "pulses_N"], ["--external", "mimo"]),
+    (["--coupled"], ["--coupled", "mimo"]),
+    (["--lock-complex", "30:0.1"], ["--lock-complex", "mimo"]),
+    (["--method", "mimo", "--structure", "rigid"], ["--structure", "pole-search"]),
+    (["--method", "quasi-static", "--seed", "3"], ["--seed", "quasi-static"]),
+    (["--method", "full-ls", "--no-friction"], ["--no-friction", "full-ls"]),
+    (["--method", "mimo", "--cutoff-hz", "50"], ["--cutoff-hz", "mimo"]),
+    (["--structure", "rigid", "--jobs", "2"], ["--jobs", "pinned"]),
 ])
 def test_bad_option_values_give_one_line(capsys, files, tmp_path, opts, words):
     _, csv = files

@@ -16,6 +16,15 @@ OUTPUT_KINDS = ("error", "velocity", "position", "tool_position", "tool_error", 
 MAX_REAL, MAX_COMPLEX, MAX_ORDER = 6, 6, 12     # poles searched per block (bounded work)
 MAX_INTEGRATORS = 3
 MAX_DC_ORDER = 3
+_SEARCHED = ("pole-search", "mimo")
+# which methods read each option: one given to another method would be silently ignored
+READ_BY = {"structure": ("pole-search",), "jobs": ("pole-search",),
+           **{k: _SEARCHED for k in ("search", "seed", "maxiter", "v_tilde", "v_tilde_range",
+                                     "no_integral_action", "no_friction", "velocity", "ma_order",
+                                     "same_sample", "real_hz", "omega_hz", "zeta", "n_real", "n_complex")},
+           **{k: ("mimo",) for k in ("outputs", "coupled", "integrators", "dc_gain", "lock_complex",
+                                     "external")},
+           **{k: ("quasi-static", "full-ls") for k in ("cutoff_hz", "filter_order")}}
 
 
 def _int_in(lo, hi, what):
@@ -111,7 +120,7 @@ def register(sub):
                    help="Butterworth cutoff of the derivatives")
     q.add_argument("--filter-order", type=_int_in(1, 8, "--filter-order"), default=2)
     add_trace_arguments(p)
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, option_defaults={k: p.get_default(k) for k in READ_BY})
 
 def _pair(text, name):
     """HZ:ZETA of a locked complex pair: two finite positive numbers."""
@@ -196,6 +205,19 @@ def check_arguments(args):
             _range(r, "--" + opt.replace("_", "-"))
     if args.v_tilde_range:
         _range(args.v_tilde_range, "--v-tilde-range")
+    _refuse_unread(args)
+
+
+def _refuse_unread(args):
+    """An option the chosen method does not read is an error, not silently ignored."""
+    for dest, methods in READ_BY.items():
+        if args.method not in methods and getattr(args, dest) != args.option_defaults[dest]:
+            flag = "--" + dest.replace("_", "-")
+            raise InputError(f"{flag} is read by --method {' / '.join(methods)} only, not by "
+                             f"--method {args.method}", source=flag)
+    if args.jobs is not None and not structure_is_auto(args):
+        raise InputError("--jobs sets the processes fitting the candidates of --structure auto; "
+                         "here the structure is pinned", source="--jobs")
 
 MAX_POSITION_MM = 1e9          # 1000 km: anything larger is a unit/scale error
 MIN_SPAN_MM = 1e-9             # a commanded motion smaller than this is no excitation
