@@ -153,3 +153,25 @@ def test_report_is_self_contained_html_with_figure_data(tmp_path):
     assert data["tables"]["errors"]["rows"][0][1] == pytest.approx(1.23456)
     j = json.loads(rep.write_json(tmp_path / "r.json").read_text())
     assert j["title"] == "a test report"
+
+
+def test_refits_keep_the_users_locked_poles():
+    """A pole the user locked (``--lock-complex``) stays locked in every refit of the diagnosis:
+    searched in none, and read back as locked after a refit (the old recipe searched it)."""
+    from fdid_fmi.identify import identify_mimo, mimo_structure
+    tr = _ramp_trace()
+    st = mimo_structure(("x",), ("error",), n_real=1, n_complex=0, friction=False,
+                        locked_complex=[(30.0, 0.3)], same_sample="hold")
+    m = identify_mimo(tr, st, maxiter=3, refine=False)
+    r = ag.recipe_from_model(m)
+    assert r.complex_hz_zeta == [] and r.locked_complex == [(30.0, 0.3)] and r.order == 3
+    for search in ("local", "wide", "locked"):
+        s2, n_real, n_cplx = ag.structure_of(r, search)
+        assert n_cplx == 0 and (30.0, 0.3) in [tuple(c) for c in s2.locked_complex], search
+        assert len(ag._bounds(r, tr.Ts, search).omega_hz) == 0, search
+    refit = ag.fit(r, tr, maxiter=2, refine=False)
+    assert refit.identification["locked_complex"] == [[30.0, 0.3]]
+    r2 = ag.updated_recipe(r, refit)
+    assert r2.complex_hz_zeta == [] and r2.locked_complex == [(30.0, 0.3)] and len(r2.real_hz) == 1
+    locked = ag.fit(r2, tr, search="locked", refine=False)
+    assert ag.updated_recipe(r2, locked).real_hz == r2.real_hz

@@ -67,9 +67,11 @@ class Recipe:
     velocity: str
     ma_order: int
     same_sample: str
-    real_hz: list
+    real_hz: list                   # searched poles (current values)
     complex_hz_zeta: list           # [(hz, zeta)]
     v_tilde: dict                   # axis -> mm/s
+    locked_real_hz: list = field(default_factory=list)      # known poles the user kept out of the
+    locked_complex: list = field(default_factory=list)      # search: locked in every refit too
     new_pairs: list = field(default_factory=list)    # bounds [(lo_hz, hi_hz, zlo, zhi)] searched
     delays: dict = field(default_factory=dict)       # axis -> samples
     effects: list = field(default_factory=list)      # effect dicts added by diagnosis
@@ -78,7 +80,8 @@ class Recipe:
 
     @property
     def order(self):
-        return len(self.real_hz) + 2 * (len(self.complex_hz_zeta) + len(self.new_pairs))
+        return (len(self.real_hz) + len(self.locked_real_hz)
+                + 2 * (len(self.complex_hz_zeta) + len(self.locked_complex) + len(self.new_pairs)))
 
     def copy(self):
         return copy.deepcopy(self)
@@ -107,8 +110,7 @@ def recipe_from_model(model: DriveModel, reserved=()) -> Recipe:
                          f"identification has no 'structure' ({what})", column="identification")
     rec = PoleSearchRecord.from_dict(ident)
     st = rec.structure
-    real, cplx = rec.all_real_hz, rec.all_complex
-    n = len(real) + 2 * len(cplx)
+    n = len(rec.all_real_hz) + 2 * len(rec.all_complex)
     vt = dict(rec.v_tilde_mm_s)
     for a in [s.axis for s in st.inputs if s.kind == "friction"]:
         if a not in vt:
@@ -117,7 +119,9 @@ def recipe_from_model(model: DriveModel, reserved=()) -> Recipe:
                   masks={k: frozenset(n - l for l in ls) for k, ls in st.mask.items()},
                   dc_gain=dict(st.dc_gain), friction_sign=dict(st.friction_sign), velocity=st.velocity,
                   ma_order=st.ma_order, same_sample=st.same_sample or "quadratic",
-                  real_hz=real, complex_hz_zeta=cplx, v_tilde=vt,
+                  real_hz=list(rec.real_hz), complex_hz_zeta=[tuple(c) for c in rec.complex_hz_zeta],
+                  locked_real_hz=list(rec.locked_real_hz),
+                  locked_complex=[tuple(c) for c in rec.locked_complex], v_tilde=vt,
                   delays={a: int(d) for a, d in rec.diagnose.get("delays", {}).items()},
                   effects=list(model.effects), reserved=set(reserved))
 
@@ -134,14 +138,14 @@ def _shift_mask(powers, n_old, n_new):
 def structure_of(recipe: Recipe, search="local"):
     """(Structure, Bounds or None) for a refit of the recipe."""
     n = recipe.order
+    locked_real, locked_cplx = list(recipe.locked_real_hz), list(recipe.locked_complex)
     if search == "locked":
         n_real, n_cplx = 0, 0
-        locked_real = list(recipe.real_hz)
-        locked_cplx = list(recipe.complex_hz_zeta) + [((lo * hi) ** 0.5, (zl * zh) ** 0.5)
-                                                      for lo, hi, zl, zh in recipe.new_pairs]
+        locked_real += list(recipe.real_hz)
+        locked_cplx += list(recipe.complex_hz_zeta) + [((lo * hi) ** 0.5, (zl * zh) ** 0.5)
+                                                       for lo, hi, zl, zh in recipe.new_pairs]
     else:
         n_real, n_cplx = len(recipe.real_hz), len(recipe.complex_hz_zeta) + len(recipe.new_pairs)
-        locked_real, locked_cplx = [], []
     mask = {}
     for key, pw in recipe.masks.items():
         ls = tuple(sorted(n - p for p in pw if 0 <= n - p <= n))
@@ -309,11 +313,23 @@ def other_same_sample(recipe: Recipe) -> Recipe:
     return r
 
 
+def _without(values, remove):
+    """``values`` with one occurrence of each of ``remove`` taken out (exact: locked poles are
+    passed through the pole search unchanged)."""
+    out = list(values)
+    for v in remove:
+        out.remove(v)
+    return out
+
+
 def updated_recipe(recipe: Recipe, model: DriveModel) -> Recipe:
     """The recipe with the poles of a fitted model as the new current values (pairs found)."""
     r = recipe.copy()
     rec = PoleSearchRecord.from_dict(model.identification)
-    r.real_hz, r.complex_hz_zeta = rec.all_real_hz, rec.all_complex
+    # a refit with search="locked" records every pole as locked: the user's stay locked, the rest
+    # are the recipe's searched poles
+    r.real_hz = _without(rec.all_real_hz, r.locked_real_hz)
+    r.complex_hz_zeta = _without(rec.all_complex, [tuple(c) for c in r.locked_complex])
     r.new_pairs = []
     return r
 
