@@ -175,3 +175,21 @@ def test_refits_keep_the_users_locked_poles():
     assert r2.complex_hz_zeta == [] and r2.locked_complex == [(30.0, 0.3)] and len(r2.real_hz) == 1
     locked = ag.fit(r2, tr, search="locked", refine=False)
     assert ag.updated_recipe(r2, locked).real_hz == r2.real_hz
+
+
+def test_a_scan_point_without_a_feasible_refit_is_inf_not_the_end(small_model):
+    """One grid point of a Stribeck or period scan whose refit the pole search cannot make
+    (InputError) scores inf; the scan and the diagnosis go on."""
+    from fdid_fmi.diagnose.base import scan_refine
+    model, tr = small_model
+    r = ag.recipe_from_model(model)
+    bad = r.copy()
+    bad.same_sample = "none such"           # the engine refuses it with an InputError
+    with pytest.raises(InputError):
+        ag.fit(bad, tr, maxiter=2, refine=False)
+    assert ag.fit_objective(bad, tr, maxiter=2, refine=False) == np.inf
+    ok = ag.fit_objective(r, tr, maxiter=2, refine=False)
+    assert np.isfinite(ok)
+    best, vals = scan_refine(lambda x: ag.fit_objective(bad if x < 1 else r, tr, maxiter=2, refine=False),
+                             np.array([0.0, 1.0]))
+    assert best == 1.0 and vals[0] == np.inf

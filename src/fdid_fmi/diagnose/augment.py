@@ -248,6 +248,15 @@ def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, r
     return model
 
 
+def fit_objective(recipe: Recipe, traces, **kw):
+    """The scaled LS objective of :func:`fit` (one point of a parameter scan); inf when the
+    pole search finds no feasible model there (``identify_mimo`` raises InputError)."""
+    try:
+        return fit(recipe, traces, **kw).metrics["objective_scaled_rms"]
+    except InputError:
+        return np.inf
+
+
 def _start(recipe: Recipe):
     """The recipe's poles as a search start: (real_hz, complex_hz_zeta), new pairs at the
     geometric middle of their bounds."""

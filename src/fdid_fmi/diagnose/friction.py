@@ -168,9 +168,8 @@ def _best_vs(ctx, a):
     xs = np.linspace(np.log10(lo), np.log10(hi), 7)
 
     def J(lx):
-        m = ag.fit(ag.add_stribeck(ctx.recipe, a, 10 ** lx), ctx.train, search="local", maxiter=10,
-                   refine=False)
-        return m.metrics["objective_scaled_rms"]
+        return ag.fit_objective(ag.add_stribeck(ctx.recipe, a, 10 ** lx), ctx.train, search="local",
+                                maxiter=10, refine=False)
 
     best, _ = scan_refine(J, xs)
     return float(10 ** best)

@@ -410,8 +410,12 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
             say(f"round {step + 1}: nothing detected")
             break
         say(f"round {step + 1}: null refit")
-        null = ag.fit(recipe, vel_train, search="local", maxiter=maxiter)
-        tab_null = {"train": residuals(null, train).table(), "val": residuals(null, val).table()}
+        try:
+            null = ag.fit(recipe, vel_train, search="local", maxiter=maxiter)
+            tab_null = {"train": residuals(null, train).table(), "val": residuals(null, val).table()}
+        except InputError as exc:   # no feasible refit of the same structure: the current model
+            rnd["null_refit_error"] = str(exc)
+            tab_null = tab_cur
         ref_val = _better(tab_cur["val"], tab_null["val"])
         ref_train = _better(tab_cur["train"], tab_null["train"])
         tab_plus = None
@@ -454,8 +458,13 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
             if tab_plus is not None and c.kind in ORDER_RIVALS:   # and one more real pole
                 rtr, rva = _better(rtr, tab_plus["train"]), _better(rva, tab_plus["val"])
             if c.reference is not None:     # the effect must also beat its reference structure
-                mr = ag.fit(c.reference, vel_train, search=c.search, maxiter=maxiter,
-                               refine=c.search != "locked")
+                try:
+                    mr = ag.fit(c.reference, vel_train, search=c.search, maxiter=maxiter,
+                                refine=c.search != "locked")
+                except InputError as exc:   # then it cannot be compared: not kept
+                    rnd["trials"].append({"kind": c.kind, "params": c.params,
+                                          "error": f"reference refit: {exc}"})
+                    continue
                 if kept_base:
                     mr = ag.keep_base_outputs(current, mr)
                 t2, v2 = residuals(mr, train).table(), residuals(mr, val).table()

@@ -126,8 +126,8 @@ def _refine(ctx, a, lam0):
     xs = lam0 * np.exp(np.arange(-0.12, 0.1201, 0.002))
 
     def J(lam):
-        return ag.fit(ag.add_periodic(ctx.recipe, a, lam), ctx.train, search="locked", refine=False).metrics[
-            "objective_scaled_rms"]
+        return ag.fit_objective(ag.add_periodic(ctx.recipe, a, lam), ctx.train, search="locked",
+                                refine=False)
 
     best, _ = scan_refine(J, xs)
     return float(best)
