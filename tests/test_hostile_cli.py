@@ -208,6 +208,22 @@ def test_bad_option_values_give_one_line(capsys, files, tmp_path, opts, words):
     assert not (tmp_path / "out.json").exists()
 
 
+@pytest.mark.parametrize("argv,words", [
+    # a NaN gain can never be met and a negative one keeps what does not help: both refused
+    (["diagnose", "m.json", "--train", "t.csv", "--min-gain", "nan"], ["--min-gain", "[0, 1)"]),
+    (["diagnose", "m.json", "--train", "t.csv", "--max-loss", "-5"], ["--max-loss", "[0, 1)"]),
+    (["diagnose", "m.json", "--train", "t.csv", "--max-steps", "-1"], ["--max-steps"]),
+    (["diagnose", "m.json", "--train", "t.csv", "--maxiter", "0"], ["--maxiter"]),
+    (["plan", "p.nc", "--model", "m.json", "--tol", "nan"], ["--tol", "> 0"]),
+    (["plan", "p.nc", "--model", "m.json", "--margin", "-3"], ["--margin", "[0, 1)"]),
+    (["validate", "d.fmu", "t.csv", "--tolerance", "nan"], ["--tolerance", "> 0"]),
+    (["align", "c.csv", "--window", "0", "-o", "a.csv"], ["--window", "> 0"]),
+])
+def test_bad_numbers_of_other_commands_give_one_line(capsys, argv, words):
+    code, _, err = run(capsys, *argv)
+    assert_one_line(code, err, *words)
+
+
 # ----------------------------------------------------------------------------- data
 @pytest.mark.parametrize("scale,word", [(1e300, "positions reach"), (1e-300, "moves by only")])
 def test_absurdly_scaled_data_is_refused(capsys, tmp_path, scale, word):

@@ -20,6 +20,7 @@ import json
 
 
 from ..errors import InputError
+from .argtypes import finite_float
 from .mapping import add_trace_arguments, trace_from_args
 
 SENSOR_KEYS = {"cols", "t", "unit", "axes", "name", "sign"}
@@ -46,9 +47,9 @@ def register(sub):
                    help="accelerometer orientations from a calibration run's --json (two axes moving)")
     p.add_argument("--lowpass", type=float, default=10.0, metavar="HZ",
                    help="low-pass of the estimation signals, below the first tool-side mode (default 10)")
-    p.add_argument("--window", type=float, default=1.0, metavar="S",
+    p.add_argument("--window", type=finite_float("--window", positive=True), default=1.0, metavar="S",
                    help="window of the lag estimates for the clock drift (default 1 s)")
-    p.add_argument("--max-offset", type=float, default=None, metavar="S",
+    p.add_argument("--max-offset", type=finite_float("--max-offset", positive=True), default=None, metavar="S",
                    help="largest time offset searched (default: any)")
     add_trace_arguments(p)
     p.set_defaults(func=run)

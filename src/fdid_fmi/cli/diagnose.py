@@ -15,6 +15,7 @@ from ..model import DriveModel, load_model
 from ..outputs import atomic_write, check_output, same_file
 
 MIN_SAMPLES = 200     # samples of each trace (or half) the diagnosis fits or judges on
+from .argtypes import fraction, int_in
 from .mapping import add_trace_arguments, trace_from_args
 
 
@@ -34,12 +35,12 @@ def register(sub):
     p.add_argument("-o", "--output", default=None, help="write the augmented model JSON here")
     p.add_argument("--report", default=None, help="write the HTML report here")
     p.add_argument("--json", default=None, help="write the JSON summary here")
-    p.add_argument("--min-gain", type=float, default=0.05,
+    p.add_argument("--min-gain", type=fraction("--min-gain"), default=0.05,
                    help="keep an effect only if the held-out RMS falls by at least this fraction (0.05)")
-    p.add_argument("--max-loss", type=float, default=0.01,
+    p.add_argument("--max-loss", type=fraction("--max-loss"), default=0.01,
                    help="... and no scored channel rises by more than this fraction (0.01)")
-    p.add_argument("--max-steps", type=int, default=4, help="at most this many effects added (per axis of a combined per-axis model)")
-    p.add_argument("--maxiter", type=int, default=25, help="DE iterations of each refit")
+    p.add_argument("--max-steps", type=int_in(0, 100, "--max-steps"), default=4, help="at most this many effects added (per axis of a combined per-axis model)")
+    p.add_argument("--maxiter", type=int_in(1, 100000, "--maxiter"), default=25, help="DE iterations of each refit")
     p.add_argument("--detectors", default=None,
                    help="comma list of detector families (friction, mode, delay, periodic, coupling)")
     p.add_argument("--exclude", nargs="+", action="extend", default=[], metavar="CHANNEL",

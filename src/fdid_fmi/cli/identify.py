@@ -1,7 +1,6 @@
 """``fdid identify``: trace -> model JSON (quasi-static, full-ls, pole-search, mimo)."""
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 
@@ -9,6 +8,7 @@ from ..errors import InputError
 from ..model import DriveModel, check_name
 from ..outputs import check_output
 from . import naming
+from .argtypes import finite_float, int_in
 from .mapping import add_trace_arguments, trace_from_args
 
 METHODS = ("quasi-static", "full-ls", "pole-search", "mimo")
@@ -27,32 +27,6 @@ READ_BY = {"structure": ("pole-search",), "jobs": ("pole-search",),
            **{k: ("quasi-static", "full-ls") for k in ("cutoff_hz", "filter_order")}}
 
 
-def _int_in(lo, hi, what):
-    """argparse type: an integer in [lo, hi]."""
-    def conv(text):
-        try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"'{text}' is not an integer") from None
-        if not lo <= v <= hi:
-            raise argparse.ArgumentTypeError(f"{what} must be in {lo} .. {hi}, got {v}")
-        return v
-    return conv
-
-
-def _finite_float(what, positive=False):
-    """argparse type: a finite float (> 0 when ``positive``)."""
-    def conv(text):
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
-        if not math.isfinite(v) or (positive and not v > 0):
-            raise argparse.ArgumentTypeError(f"{what} must be a finite number{' > 0' if positive else ''}, "
-                                             f"got {text}")
-        return v
-    return conv
-
 def register(sub):
     p = sub.add_parser("identify", help="identify a drive model from a trace",
                        description="Identify a feed-drive model from a measured trace and save it as JSON.")
@@ -68,14 +42,14 @@ def register(sub):
                         "with a 5%% parsimony rule); rigid: the thesis's SISO model. Default: auto, unless "
                         "--n-real/--n-complex/--real-hz/--omega-hz/--zeta/--no-integral-action/"
                         "--no-friction/--v-tilde-range pin the structure")
-    s.add_argument("--jobs", type=_int_in(1, 1024, "--jobs"), default=None,
+    s.add_argument("--jobs", type=int_in(1, 1024, "--jobs"), default=None,
                    help="processes fitting the candidate structures of --structure auto (default: one per core)")
     s.add_argument("--search", choices=("de", "multistart", "direct"), default="de",
                    help="global optimiser (thesis: GlobalSearch / MultiStart / pattern search)")
-    s.add_argument("--seed", type=_int_in(0, 2 ** 32 - 1, "the seed"), default=0,
+    s.add_argument("--seed", type=int_in(0, 2 ** 32 - 1, "the seed"), default=0,
                    help="random seed of the search, 0 .. 2**32-1 (default 0)")
-    s.add_argument("--maxiter", type=_int_in(1, 100000, "--maxiter"), default=None)
-    s.add_argument("--v-tilde", type=_finite_float("--v-tilde", positive=True), default=None,
+    s.add_argument("--maxiter", type=int_in(1, 100000, "--maxiter"), default=None)
+    s.add_argument("--v-tilde", type=finite_float("--v-tilde", positive=True), default=None,
                    help="fix the friction transition velocity [mm/s] (default: searched)")
     s.add_argument("--v-tilde-range", default=None, metavar="LO:HI", help="search range of v_tilde [mm/s]")
     s.add_argument("--no-integral-action", action="store_true",
@@ -84,7 +58,7 @@ def register(sub):
     s.add_argument("--no-friction", action="store_true", help="leave the friction input out")
     s.add_argument("--velocity", choices=("backward", "central"), default="backward",
                    help="measured velocity estimate driving friction")
-    s.add_argument("--ma-order", type=_int_in(1, 1000, "--ma-order"), default=1, help="moving-average order of that velocity")
+    s.add_argument("--ma-order", type=int_in(1, 1000, "--ma-order"), default=1, help="moving-average order of that velocity")
     s.add_argument("--same-sample", choices=("hold", "cubic", "quadratic"), default=None,
                    help="how the command of the predicted sample is taken from the samples before "
                         "(hold: a loop without look-ahead; cubic: feed-forward with one sample of "
@@ -98,9 +72,9 @@ def register(sub):
     s.add_argument("--zeta", action="append", default=None, metavar="LO:HI",
                    help="damping bounds of each complex pair (repeat per pair, same order)")
     m = p.add_argument_group("mimo")
-    m.add_argument("--n-real", type=_int_in(0, MAX_REAL, "--n-real"), default=None,
+    m.add_argument("--n-real", type=int_in(0, MAX_REAL, "--n-real"), default=None,
                    help=f"number of real poles searched (0 .. {MAX_REAL})")
-    m.add_argument("--n-complex", type=_int_in(0, MAX_COMPLEX, "--n-complex"), default=None,
+    m.add_argument("--n-complex", type=int_in(0, MAX_COMPLEX, "--n-complex"), default=None,
                    help=f"number of complex pairs searched (0 .. {MAX_COMPLEX})")
     m.add_argument("--outputs", default="error",
                    help="comma list of outputs per axis: error, velocity, position, tool_position, "
@@ -116,9 +90,9 @@ def register(sub):
     m.add_argument("--external", action="append", default=[], metavar="CHANNEL",
                    help="use an extra trace channel as an input (e.g. pulses_N)")
     q = p.add_argument_group("quasi-static / full-ls")
-    q.add_argument("--cutoff-hz", type=_finite_float("--cutoff-hz", positive=True), default=None,
+    q.add_argument("--cutoff-hz", type=finite_float("--cutoff-hz", positive=True), default=None,
                    help="Butterworth cutoff of the derivatives")
-    q.add_argument("--filter-order", type=_int_in(1, 8, "--filter-order"), default=2)
+    q.add_argument("--filter-order", type=int_in(1, 8, "--filter-order"), default=2)
     add_trace_arguments(p)
     p.set_defaults(func=run, option_defaults={k: p.get_default(k) for k in READ_BY})
 

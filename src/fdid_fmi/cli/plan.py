@@ -15,6 +15,7 @@ import json
 from pathlib import Path
 
 from ..errors import InputError
+from .argtypes import finite_float, fraction
 
 
 def register(sub):
@@ -32,9 +33,9 @@ def register(sub):
                    help="use the controller's interpolated setpoints (cmd channels of TRACE) instead of interpolating")
     p.add_argument("--corner-angle", type=float, default=None, metavar="DEG",
                    help="no stop at junctions whose tangents differ by at most DEG (default: exact stop at every block end)")
-    p.add_argument("--tol", type=float, default=None, help="contour tolerance [mm]: blocks above it are flagged")
+    p.add_argument("--tol", type=finite_float("--tol", positive=True), default=None, help="contour tolerance [mm]: blocks above it are flagged")
     p.add_argument("--optimize", action="store_true", help="find per-block feeds within --tol (needs --tol)")
-    p.add_argument("--margin", type=float, default=0.02,
+    p.add_argument("--margin", type=fraction("--margin"), default=0.02,
                    help="the optimised feeds aim at tol x (1 - margin), room for the twin's error (default 0.02)")
     p.add_argument("-o", "--output", default=None, help="write the optimised NC program here")
     p.add_argument("--report", default=None, help="HTML report")

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 
+from .argtypes import finite_float
 from .mapping import add_trace_arguments, trace_from_args
 
 
@@ -20,7 +21,7 @@ def register(sub):
     p.add_argument("--model", default=None,
                    help="reference model JSON (default: resources/model.json inside the FMU)")
     p.add_argument("--json", default=None, metavar="OUT.json", help="write the results as JSON")
-    p.add_argument("--tolerance", type=float, default=1e-9,
+    p.add_argument("--tolerance", type=finite_float("--tolerance", positive=True), default=1e-9,
                    help="largest accepted |FMU - reference| in mm (default 1e-9)")
     add_trace_arguments(p)
     p.set_defaults(func=run)
