@@ -193,3 +193,15 @@ def test_a_scan_point_without_a_feasible_refit_is_inf_not_the_end(small_model):
     best, vals = scan_refine(lambda x: ag.fit_objective(bad if x < 1 else r, tr, maxiter=2, refine=False),
                              np.array([0.0, 1.0]))
     assert best == 1.0 and vals[0] == np.inf
+
+
+def test_local_windows_keep_a_slow_pole_where_it_is(small_model):
+    """A real pole below the 0.05 Hz floor (user bounds allow it) is searched around itself, not
+    near Nyquist; ordinary poles keep the floor and the cap."""
+    model, tr = small_model
+    r = ag.recipe_from_model(model)
+    r.real_hz = [0.01] + list(r.real_hz)[1:]
+    lo, hi = ag._bounds(r, tr.Ts, "local").real_hz[0]
+    assert (lo, hi) == (0.005, 0.02)
+    assert ag._window(1.0, 2.0, 400.0) == (0.5, 2.0) and ag._window(0.06, 2.0, 400.0) == (0.05, 0.12)
+    assert ag._window(300.0, 2.0, 400.0) == (150.0, 400.0)

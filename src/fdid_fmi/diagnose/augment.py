@@ -158,6 +158,14 @@ def structure_of(recipe: Recipe, search="local"):
     return st, n_real, n_cplx
 
 
+def _window(f, factor, hi_cap):
+    """Local search window (f / factor, f * factor) in Hz, floored at 0.05 Hz unless that empties
+    it (a pole slower than 0.05 Hz, possible with user bounds) and capped below Nyquist."""
+    hi = min(hi_cap, f * factor)
+    lo = max(0.05, f / factor)
+    return (lo if lo < hi else f / factor), hi
+
+
 def _bounds(recipe: Recipe, Ts, search):
     nyq = 0.5 / Ts
     hi_cap = 0.95 * nyq
@@ -167,9 +175,8 @@ def _bounds(recipe: Recipe, Ts, search):
         b = default_bounds(Ts, len(recipe.real_hz), len(recipe.complex_hz_zeta))
         real, om, ze = list(b.real_hz), list(b.omega_hz), list(b.zeta)
     else:
-        real = [(max(0.05, p / 2.0), min(hi_cap, p * 2.0)) for p in recipe.real_hz]
-        real = [(lo, hi) if lo < hi else (hi_cap / 2, hi_cap) for lo, hi in real]
-        om = [(max(0.05, w / 1.5), min(hi_cap, w * 1.5)) for w, _ in recipe.complex_hz_zeta]
+        real = [_window(p, 2.0, hi_cap) for p in recipe.real_hz]
+        om = [_window(w, 1.5, hi_cap) for w, _ in recipe.complex_hz_zeta]
         ze = [(max(0.003, z / 3.0), min(4.0, max(z * 3.0, 0.01))) for _, z in recipe.complex_hz_zeta]
     for lo, hi, zl, zh in recipe.new_pairs:
         om.append((max(0.05, lo), min(hi_cap, hi)))
