@@ -234,6 +234,21 @@ def test_random_names_refused_or_valid_xml(tmp_path_factory, name, unit, desc):
             assert desc in [e.get("description") for e in root.iter()]
 
 
+def test_a_port_named_time_does_not_clash_with_fmi3_time(tmp_path):
+    """FMI 3 declares the independent variable ``time``: a port of that name gets another
+    variable name, and both model descriptions pass fmpy's validator."""
+    lay = build_layout(DriveModel.from_dict(model_dict(ext_name="time")))
+    guid = "{00000000-0000-0000-0000-000000000000}"
+    for k, xml in ((2, model_description_fmi2(lay, guid, "m", source_files=["a.c"])),
+                   (3, model_description_fmi3(lay, guid, "m"))):
+        folder = tmp_path / f"md{k}"
+        folder.mkdir()
+        (folder / "modelDescription.xml").write_text(xml, encoding="utf-8")
+        assert fmpy_validate(str(folder)) == [], xml
+        names = [e.get("name") for e in ET.fromstring(xml.encode("utf-8")).iter() if e.get("name")]
+        assert len(names) == len(set(names))
+
+
 @settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(name=st.from_regex(r"[A-Za-z_][A-Za-z0-9_]{0,20}", fullmatch=True),
        desc=st.text(st.characters(blacklist_categories=("Cc", "Cs", "Zl", "Zp")), max_size=40))

@@ -173,7 +173,7 @@ def build_layout(model):
 
     deps = _dependencies(m, axes, cmd, pos, vel, fric, fvo)
 
-    names = set()
+    names = {"time"}        # the FMI 3 independent variable (fmu/description.py) takes that name
 
     def unique(name, prefix):
         while name in names:
