@@ -386,6 +386,54 @@ def test_forged_serialized_states_are_refused(fmu2):
     f.freeInstance()
 
 
+def test_a_non_finite_output_is_an_error_not_a_value(fmu2):
+    """A state whose values are finite but huge (a forged state here; a diverged model alike)
+    makes an output infinite: fmi2GetReal refuses it (status error) instead of returning inf with
+    OK, and the instance recovers by reset."""
+    import ctypes as ct
+    from fdid_fmi import kernel
+    m = DriveModel.from_dict(model_dict())
+    nbuf = kernel._lib().fdid_buffer_size(ct.byref(kernel.CompiledModel(m).c))
+    outs = [v.valueReference for v in read_model_description(str(fmu2)).modelVariables
+            if v.causality == "output"]
+    f = _slave(fmu2, [])
+    f.doStep(0.0, TS)
+    state = f.getFMUstate()
+    b = bytearray(f.serializeFMUstate(state))
+    for i in range(m.n_states):                         # the model's states, at the buffer's start
+        struct.pack_into("<d", b, len(b) - 8 * (nbuf - i), 1.7e308)
+    f.deSerializeFMUstate(bytes(b), state)              # finite: accepted
+    f.setFMUstate(state)
+    with pytest.raises(FMICallException):
+        f.getReal(outs)
+    f.reset()
+    f.setupExperiment(startTime=0.0)
+    f.enterInitializationMode()
+    f.exitInitializationMode()
+    f.doStep(0.0, TS)
+    assert np.all(np.isfinite(f.getReal(outs)))
+    f.freeInstance()
+
+
+def test_fmi3_logs_nothing_with_logging_off(tmp_path):
+    """FMI 3: with loggingOn = false the FMU never calls logMessage, not even for an error; with
+    it on, the error is logged."""
+    fmu = export_fmu(DriveModel.from_dict(model_dict()), tmp_path / "l3.fmu", fmi_version=3)
+    md = read_model_description(str(fmu))
+    unzipped = extract(str(fmu))
+    for on in (False, True):
+        logged = []
+        f = FMU3Slave(guid=md.guid, unzipDirectory=unzipped,
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="l3")
+        f.instantiate(loggingOn=on, logMessage=lambda env, status, cat, msg: logged.append(msg))
+        f.enterInitializationMode(startTime=0.0)
+        f.exitInitializationMode()
+        with pytest.raises(FMICallException):
+            f.doStep(0.0, 0.5 * TS)                     # not a whole number of samples
+        f.freeInstance()
+        assert bool(logged) == on, logged
+
+
 def test_fmi3_do_step_with_1e10_steps_is_refused_fast(tmp_path):
     fmu = export_fmu(DriveModel.from_dict(model_dict()), tmp_path / "h3.fmu", fmi_version=3)
     md = read_model_description(str(fmu))

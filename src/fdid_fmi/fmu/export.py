@@ -59,10 +59,15 @@ def model_identifier_for(path):
 
 
 def fmu_guid(model, fmi_version, model_identifier, backend="c"):
-    """GUID (FMI 2) / instantiation token (FMI 3): a hash of the model, the templates and options."""
+    """GUID (FMI 2) / instantiation token (FMI 3): a hash of the model, the templates, the code
+    that numbers the variables and writes the model description (layout.py, description.py), the
+    package version and the options."""
+    from .. import __version__
     h = hashlib.sha256()
     h.update(json.dumps(model.to_dict(), sort_keys=True).encode())
-    h.update(f"|fmi{fmi_version}|{model_identifier}|{backend}|".encode())
+    h.update(f"|fmi{fmi_version}|{model_identifier}|{backend}|{__version__}|".encode())
+    for f in ("layout.py", "description.py"):
+        h.update((Path(__file__).parent / f).read_bytes())
     if backend == "c":
         tdir = templates_dir()
         for f in (*CORE_SOURCES, *HEADERS, PLUMBING[fmi_version]):

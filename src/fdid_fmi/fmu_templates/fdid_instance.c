@@ -248,6 +248,10 @@ int fdid_get_real(FdidInstance *I, const char *fn, unsigned vr, double *value) {
     const FdidVar *v = lookup(I, fn, vr, FDID_T_REAL);
     if (!v) return 0;
     *value = fdid_var_value(&I->s, v);
+    if (!fdid_is_finite(*value)) {     /* a diverged model or a forged state: never a value with OK */
+        fdid_fail(I, "%s: %s is not finite (the model diverged or its state is corrupt)", fn, v->name);
+        return 0;
+    }
     return 1;
 }
 

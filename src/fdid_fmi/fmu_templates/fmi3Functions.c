@@ -54,9 +54,10 @@ FMI3_Export fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, f
                                                       fmi3String resourcePath, fmi3Boolean visible,
                                                       fmi3Boolean loggingOn, fmi3InstanceEnvironment instanceEnvironment,
                                                       fmi3LogMessageCallback logMessage) {
-    (void)instanceName; (void)instantiationToken; (void)resourcePath; (void)visible; (void)loggingOn;
-    if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError",
-                               "fmi3InstantiateModelExchange: this FMU supports Co-Simulation only");
+    (void)instanceName; (void)instantiationToken; (void)resourcePath; (void)visible;
+    if (logMessage && loggingOn)    /* FMI 3: with loggingOn false, logMessage is never called */
+        logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                   "fmi3InstantiateModelExchange: this FMU supports Co-Simulation only");
     return NULL;
 }
 
@@ -65,10 +66,11 @@ FMI3_Export fmi3Instance fmi3InstantiateScheduledExecution(
     fmi3Boolean loggingOn, fmi3InstanceEnvironment instanceEnvironment, fmi3LogMessageCallback logMessage,
     fmi3ClockUpdateCallback clockUpdate, fmi3LockPreemptionCallback lockPreemption,
     fmi3UnlockPreemptionCallback unlockPreemption) {
-    (void)instanceName; (void)instantiationToken; (void)resourcePath; (void)visible; (void)loggingOn;
+    (void)instanceName; (void)instantiationToken; (void)resourcePath; (void)visible;
     (void)clockUpdate; (void)lockPreemption; (void)unlockPreemption;
-    if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError",
-                               "fmi3InstantiateScheduledExecution: this FMU supports Co-Simulation only");
+    if (logMessage && loggingOn)
+        logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                   "fmi3InstantiateScheduledExecution: this FMU supports Co-Simulation only");
     return NULL;
 }
 
@@ -85,7 +87,9 @@ FMI3_Export fmi3Instance fmi3InstantiateCoSimulation(
     tmp.base.api = &API;
     tmp.env = instanceEnvironment;
     tmp.logger = logMessage;
-    tmp.base.log_on[FDID_CAT_ERROR] = tmp.base.log_on[FDID_CAT_FATAL] = 1;
+    /* FMI 3: with loggingOn false the FMU never calls logMessage, errors included (FMI 2, by
+     * contrast, expects errors to be logged: fmi2Functions.c) */
+    tmp.base.log_on[FDID_CAT_ERROR] = tmp.base.log_on[FDID_CAT_FATAL] = loggingOn ? 1 : 0;
     tmp.base.log_on[FDID_CAT_WARNING] = tmp.base.log_on[FDID_CAT_CALLS] = loggingOn ? 1 : 0;
     if (!instanceName || !instanceName[0]) {
         fdid_log(&tmp.base, FDID_ERROR, FDID_CAT_ERROR, "fmi3InstantiateCoSimulation: missing instance name");
