@@ -301,3 +301,35 @@ def test_trailing_delimiter(tmp_path):
     tr = read_trace(write(tmp_path, "0;0;0,01;\n1;0,1;0,02;\n2;0,2;0,03;\n", "gui.txt"))
     assert tr.meta["layout"] == "siso-gui"
     np.testing.assert_allclose(tr.cmd("x"), [0.01, 0.12, 0.23])
+
+
+def _rows(n=200, time=lambda k: f"{k * 0.001:.6f}", cols=2):
+    return "\n".join(",".join([time(k)] + [f"{k * 0.01:.5f}"] * cols) for k in range(n))
+
+
+@pytest.mark.parametrize("name,text,mapping,words", [
+    # one column as two signals would make the tracking error 0 (cmd = act)
+    ("two_roles.csv", "t_s,p1,p2\n" + _rows(), {"x.cmd": "p1", "x.act": "p1"}, ["'p1'", "x.cmd", "x.act"]),
+    # the name says mm, the header's unit um: which one is right only the user knows
+    ("unit_clash.csv", "t_s,x_cmd_mm [um],x_mm\n" + _rows(), None, ["x_cmd_mm", "'mm'", "'um'"]),
+    # two time columns (ms and s): taking the first one silently could be the wrong one
+    ("two_time.csv", "time_ms,t_s,x_cmd_mm,x_mm\n" + _rows(time=lambda k: f"{k},{k * 0.001:.6f}"), None,
+     ["time_ms", "t_s", "--map t="]),
+    # each step within the jitter tolerance, but two rates: the uniform grid would be 12 ms off
+    ("drift.csv", "t_s,x_cmd_mm,x_mm\n" + _rows(time=lambda k: f"{k * 0.001 if k < 100 else 0.099 + (k - 99) * 0.001049:.7f}"),
+     None, ["t_s", "row", "uniform grid"]),
+])
+def test_ambiguous_or_inconsistent_files_are_refused(tmp_path, name, text, mapping, words):
+    p = tmp_path / name
+    p.write_text(text)
+    with pytest.raises(InputError) as exc:
+        read_trace(p, mapping=mapping)
+    for w in words:
+        assert w in str(exc.value), (w, str(exc.value))
+
+
+def test_axis_last_names_are_recognised(tmp_path):
+    """'v_y' (the README's example) is axis y's velocity, not a role of an axis 'v'."""
+    p = tmp_path / "vy.csv"
+    p.write_text("t_s,y_cmd_mm,y_mm,v_y_mm_s\n" + _rows(cols=3))
+    assert read_trace(p).roles["y"] == {"cmd": "y_cmd_mm", "act": "y_mm", "vel": "v_y_mm_s"}

@@ -110,6 +110,11 @@ class Trace:
                 f"sample time is not steady: step {dt[k]:.6g} s against the median {ts:.6g} s "
                 f"(tolerance {self.jitter_tol:.0%}); resample the trace first",
                 source=src, column="time", row=k + 2)
+        k = off_grid(self.t)
+        if k is not None:
+            raise InputError(f"the time stamps drift from a uniform grid (more than half a sample at "
+                             f"t = {float(self.t[k]):.6g} s): more than one sample rate; resample the "
+                             f"trace first", source=src, column="time", row=k + 1)
         for name, ch in self.channels.items():
             if ch.data.shape != (n,):
                 raise InputError(f"has {ch.data.size} samples but time has {n}", source=src, column=name)
@@ -257,6 +262,18 @@ class Trace:
         for name, data in (extra or {}).items():
             channels[name] = Channel(name, (units or {}).get(name, "1"), data)
         return cls(t=t, channels=channels, roles=roles, source=source, meta=dict(meta or {}))
+
+
+def off_grid(t, tol=0.5):
+    """Index of the time stamp farthest from the uniform grid t0 + k (t[-1] - t[0]) / (n - 1) when
+    it is more than ``tol`` samples away, else None. Each step may pass the jitter check while
+    the stamps drift (two sample rates in one record): the simulators' uniform grid would then put
+    samples at the wrong times."""
+    t = np.asarray(t, float)
+    ts = (t[-1] - t[0]) / (t.size - 1)
+    dev = np.abs(t - t[0] - np.arange(t.size) * ts)
+    k = int(np.argmax(dev))
+    return k if dev[k] > tol * ts else None
 
 
 def nominal_sample_time(t, max_digits=9, tol=0.25):

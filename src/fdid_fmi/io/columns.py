@@ -44,7 +44,7 @@ import numpy as np
 
 from .. import units as U
 from ..errors import InputError
-from ..trace import ROLES, Channel, Trace
+from ..trace import ROLES, Channel, Trace, off_grid
 
 MAP_ROLES = ROLES + ("err",)
 TIME_KEYS = ("t", "time")
@@ -213,10 +213,16 @@ def assemble(columns, *, source, mapping=None, units=None, file_units=None, rows
     # ---- units as stated (user > file > name suffix); None when nothing says
     stated = {}
     for col in names:
+        in_name = split_unit(col)[1]
         u = user_units.get(col) or file_units.get(col)
         if u is None:
-            u = split_unit(col)[1]
+            u = in_name
         stated[col] = None if u is None else U.normalise_unit(str(u).strip(), source=source, column=col)
+        if col not in user_units and col in file_units and in_name is not None and \
+                U.normalise_unit(in_name, source=source, column=col) != stated[col]:
+            # two statements of the unit disagree: only the user may settle it (COL=UNIT)
+            raise InputError(f"the name says '{in_name}' but the file says '{file_units[col]}'; give "
+                             f"the unit (--unit {col}=UNIT)", source=source, column=col)
 
     # ---- lengths
     n = None
@@ -243,6 +249,9 @@ def assemble(columns, *, source, mapping=None, units=None, file_units=None, rows
         if not cands:
             raise InputError(f"no time column found among {names}; name it 't_s' or 'time' "
                              f"(or 't_ms', ...), or map it: t=COLUMN", source=source)
+        if len(cands) > 1:
+            raise InputError(f"columns {cands} all look like time; say which one: --map t=COLUMN",
+                             source=source)
         tcol = cands[0]
     tunit = stated[tcol] or "s"
     if U.UNITS[tunit][0] != "time":
@@ -256,11 +265,16 @@ def assemble(columns, *, source, mapping=None, units=None, file_units=None, rows
     roles = {}  # axis -> role -> column
     errs = {}   # axis -> column (tracking error)
     if mapping:
+        used = {}
         for key, value in mapping.items():
             axis, role = parse_key(key, source)
             col = _resolve_column(value, names, source, key)
             if col == tcol:
                 raise InputError(f"mapping {key}={value} names the time column", source=source, column=col)
+            if col in used:         # one column as two signals would make e.g. cmd = act
+                raise InputError(f"mapping names column '{col}' for both {used[col]} and {key}",
+                                 source=source, column=col)
+            used[col] = key
             target = errs if role == "err" else roles.setdefault(axis, {})
             if role == "err":
                 if axis in errs:
@@ -277,13 +291,13 @@ def assemble(columns, *, source, mapping=None, units=None, file_units=None, rows
                 continue
             base = split_unit(col)[0]
             tokens = [t for t in re.split(r"[_\s.\-]+", base.lower()) if t]
+            role = None
             if tokens and AXIS_RE.match(tokens[0]):
                 axis, rest = tokens[0], tokens[1:]
-            elif len(tokens) > 1 and AXIS_RE.match(tokens[-1]):
+                role = _role_from_tokens(rest)
+            if role is None and len(tokens) > 1 and AXIS_RE.match(tokens[-1]):
                 axis, rest = tokens[-1], tokens[:-1]     # "pos_x", "cmd_x", "v_y"
-            else:
-                continue
-            role = _role_from_tokens(rest)
+                role = _role_from_tokens(rest)
             if role is None:
                 continue
             q = U.UNITS[stated[col]][0] if stated[col] else None
@@ -418,3 +432,8 @@ def check_time(t, *, source, column, row_of=None, jitter_tol=0.05):
         raise InputError(f"sample time is not steady: step {dt[k]:.6g} s against the median {ts:.6g} s "
                          f"(tolerance {jitter_tol:.0%}); resample the trace first",
                          source=source, column=column, row=row_of(k + 1))
+    k = off_grid(t)
+    if k is not None:
+        raise InputError(f"the time stamps drift from a uniform grid (more than half a sample at "
+                         f"t = {float(t[k]):.6g} s): more than one sample rate; resample the trace first",
+                         source=source, column=column, row=row_of(k))
