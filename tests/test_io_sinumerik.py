@@ -135,3 +135,27 @@ def test_sinumerik_errors(tmp_path, sat):
         speed_loop_frf(sat, [5000.0])
     with pytest.raises(InputError, match="fixed channels"):
         read_trace(tmp_path / "other.xml", mapping={"x.cmd": "a"})
+
+
+@pytest.mark.parametrize("edit,words", [
+    (lambda t: t.replace('<unsigned_int name="m_uNodeId">61<', '<unsigned_int name="m_uNodeId">sixtyone<', 1),
+     ["m_uNodeId", "'sixtyone'", "integer"]),
+    (lambda t: t.replace('<float name="m_dProcessUpdateTime">0.000125<',
+                         '<float name="m_dProcessUpdateTime">1,25e-4<', 1), ["m_dProcessUpdateTime", "number"]),
+    (lambda t: t.replace('name="m_ValueVector"', 'name="m_Other"', 1), ["m_ValueVector", "missing"]),
+    (lambda t: t.replace('encoding="ISO-8859-1"', 'encoding="x-bogus"', 1), ["cannot be decoded", "x-bogus"]),
+])
+def test_a_damaged_export_is_one_error_line(xml, tmp_path, edit, words):
+    """Damage an export the reader does not expect (found by a review: each one escaped as a
+    ValueError, AttributeError or LookupError): one InputError naming what is wrong."""
+    text = xml.read_bytes().decode("latin-1")
+    damaged = edit(text)
+    assert damaged != text
+    p = tmp_path / "damaged.xml"
+    p.write_bytes(damaged.encode("latin-1"))
+    with pytest.raises(InputError) as exc:
+        read_trace(p)
+    msg = str(exc.value)
+    assert "\n" not in msg
+    for w in words:
+        assert w in msg, (w, msg)

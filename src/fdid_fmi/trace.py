@@ -100,7 +100,7 @@ class Trace:
         dt = np.diff(self.t)
         if (dt <= 0).any():
             k = int(np.argmax(dt <= 0))
-            raise InputError(f"time is not strictly increasing ({self.t[k]!r} then {self.t[k+1]!r})",
+            raise InputError(f"time is not strictly increasing ({float(self.t[k]):.9g} then {float(self.t[k + 1]):.9g})",
                              source=src, column="time", row=k + 2)
         ts = float(np.median(dt))
         jit = np.abs(dt - ts) > self.jitter_tol * ts

@@ -109,11 +109,17 @@ def _member(elem, tag, name, cast=float, default=None, source=None):
         if default is not None:
             return default
         raise InputError(f"<{elem.tag}> has no member <{tag} name='{name}'>", source=source, column=name)
-    return cast(m.text.strip())
+    try:
+        return cast(m.text.strip())
+    except ValueError:
+        raise InputError(f"<{tag} name='{name}'> is {m.text.strip()[:40]!r}, not "
+                         f"{'an integer' if cast is int else 'a number'}", source=source, column=name) from None
 
 
-def _array(na, source):
+def _array(na, source, what="NumericArray"):
     """Decode one ``NumericArray`` element, checking its ``m_length``."""
+    if na is None:
+        raise InputError(f"a {what} element is missing", source=source, column=what)
     name = na.get("name")
     cplx = na.get("elementtype") == "ComplexNumber"
     if na.get("format", "base85") != "base85":
@@ -133,6 +139,8 @@ def _load_root(path):
         root = ET.parse(str(p)).getroot()
     except ET.ParseError as exc:
         raise InputError(f"is not well-formed XML ({exc})", source=str(p)) from None
+    except (ValueError, LookupError) as exc:    # an encoding the parser does not know
+        raise InputError(f"cannot be decoded as XML ({exc})", source=str(p)) from None
     if root.find(".//PlatformSignalNode") is None:
         raise InputError(f"is not a SINUMERIK SAT servo-trace export (root <{root.tag}> has no "
                          f"PlatformSignalNode)", source=str(p))
@@ -158,7 +166,7 @@ def _nodes(root, src):
         series = []
         lst = n.find("LinkedList[@name='m_TimeSeriesList']")
         for ts in (lst if lst is not None else []):
-            vals = _array(ts.find("NumericArray[@name='m_ValueVector']"), src)
+            vals = _array(ts.find("NumericArray[@name='m_ValueVector']"), src, f"node {nid} m_ValueVector")
             t0 = _member(ts, "float", "m_TimeVector.start", source=src)
             t1 = _member(ts, "float", "m_TimeVector.end", source=src)
             tl = _member(ts, "unsigned_int", "m_TimeVector.length", int, source=src)
@@ -170,13 +178,17 @@ def _nodes(root, src):
         auto = n.find("SigNodeCrossSpectrumInfo[@name='m_autospectrumInfo']")
         if auto is not None:
             cs = auto.find("CrossSpectrum")
-            node.auto = _array(cs.find("NumericArray[@name='m_ValueVector']"), src)
-            node.freq = _array(cs.find("NumericArray[@name='m_FrequencyVector']"), src)
+            if cs is None:
+                raise InputError(f"node {nid}: its autospectrum has no <CrossSpectrum>", source=src,
+                                 column=f"node{nid}")
+            node.auto = _array(cs.find("NumericArray[@name='m_ValueVector']"), src, f"node {nid} autospectrum")
+            node.freq = _array(cs.find("NumericArray[@name='m_FrequencyVector']"), src, f"node {nid} frequencies")
             node.n_avg = _member(auto, "unsigned_int", "m_uNumSpectraInAvg", int, default=0, source=src)
         cl = n.find("LinkedList[@name='m_crossSpecInfoList']")
         for el in (cl if cl is not None else []):
             other = _member(el, "unsigned_int", "m_uSignodeId", int, source=src)
-            node.cross[other] = _array(el.find("CrossSpectrum/NumericArray[@name='m_ValueVector']"), src)
+            node.cross[other] = _array(el.find("CrossSpectrum/NumericArray[@name='m_ValueVector']"), src,
+                                       f"node {nid} cross-spectrum")
         out[nid] = node
     return out
 
@@ -236,6 +248,8 @@ def read_sinumerik_trace(path) -> Trace:
         raise InputError(f"input node {nin} has {len(sin)} time series, output node {nout} has "
                          f"{len(sout)}; expected the same number (one per direction)", source=src)
     t0, t1, n = sin[0][0], sin[0][1], sin[0][2].size
+    if n < 2:
+        raise InputError(f"the time series have {n} sample(s); a trace needs at least 2", source=src)
     for k, (a, b) in enumerate(zip(sin, sout)):
         for s in (a, b):
             if s[2].size != n or not np.isclose(s[0], t0) or not np.isclose(s[1], t1):
