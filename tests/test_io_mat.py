@@ -88,3 +88,13 @@ def test_mat_errors(tmp_path):
     junk.write_bytes(b"this is not a mat file at all" * 10)
     with pytest.raises(InputError, match="not a readable MATLAB"):
         read_trace(junk)
+
+
+def test_emps_units_hold_with_an_explicit_map(shared_data):
+    """Mapping EMPS's roles by hand (--map t=t x.cmd=qg x.act=qm) keeps the file's metres: the
+    same trace as the recognised layout, not positions 1000x too small."""
+    path = shared_data / "emps" / "DATA_EMPS.mat"
+    auto = read_trace(path)
+    mapped = read_trace(path, mapping={"t": "t", "x.cmd": "qg", "x.act": "qm"})
+    np.testing.assert_array_equal(mapped.cmd("x"), auto.cmd("x"))
+    np.testing.assert_array_equal(mapped.act("x"), auto.act("x"))

@@ -97,9 +97,11 @@ def read_mat(path, mapping=None, units=None, *, axis="x", jitter_tol=0.05) -> Tr
     if skipped:
         meta["skipped_variables"] = skipped
     file_units = {}
+    if EMPS_VARS <= set(vectors):
+        # the EMPS file's units (qg, qm in metres, ...) hold whether or not the roles are mapped
+        file_units = {k: u for k, u in EMPS_UNITS.items() if k in vectors}
     if mapping is None and EMPS_VARS <= set(vectors):
         mapping = {"t": "t", f"{axis}.cmd": "qg", f"{axis}.act": "qm"}
-        file_units = {k: u for k, u in EMPS_UNITS.items() if k in vectors}
         meta["layout"] = "emps"
         for k in EMPS_SCALAR_UNITS:
             if k in scalars:
