@@ -92,6 +92,35 @@ def test_manifest_file_errors(tmp_path):
         parse_manifest_text(dup, "toml")
     with pytest.raises(InputError, match="no entries"):
         parse_manifest_text("", "toml")
+    # a bad second entry of the same machine/axis may not hide behind the good first one: both
+    # would share one result (the good one's) and one output folder
+    bad_dup = ('[[entry]]\nmachine="a"\naxis="x"\ntraces=["1.csv"]\n'
+               '[[entry]]\nmachine="a"\naxis="x"\ntraces=["1.csv"]\noptions={bogus=3}\n')
+    with pytest.raises(InputError, match="listed twice"):
+        parse_manifest_text(bad_dup, "toml")
+    clash = ('[[entry]]\nmachine="a__b"\naxis="c"\ntraces=["1.csv"]\n'
+             '[[entry]]\nmachine="a"\naxis="b__c"\ntraces=["1.csv"]\n')
+    with pytest.raises(InputError, match="same folder"):
+        parse_manifest_text(clash, "toml")
+
+
+@pytest.mark.parametrize("text,words", [
+    ('[[entry]]\nmachine="a"\naxis="x"\ntraces=["1.csv"]\nmap="x.cmd=x_cmd_mm"\n', ["map", "table", "str"]),
+    ('[defaults]\nmap="t=t_s"\n[[entry]]\nmachine="a"\naxis="x"\ntraces=["1.csv"]\n', ["map", "[defaults]"]),
+    ('[defaults]\ncolour="red"\n[[entry]]\nmachine="a"\naxis="x"\ntraces=["1.csv"]\n', ["[defaults]", "colour"]),
+])
+def test_tables_that_are_not_tables(text, words):
+    """A CSV-style string where TOML wants a table: one line naming it (was a TypeError), in an
+    entry (that entry fails) or in [defaults] (the manifest is refused)."""
+    try:
+        m = parse_manifest_text(text, "toml")
+    except InputError as exc:
+        msg = str(exc)
+    else:
+        msg = m.entries[0].error
+    assert msg and "\n" not in msg
+    for w in words:
+        assert w in msg, (w, msg)
 
 
 def test_entry_hash_follows_bytes_options_and_version(tmp_path):

@@ -219,12 +219,14 @@ def _build_entry(raw: dict, defaults: dict, base: Path, row: int, where: str) ->
             raise InputError(f"entry {row} needs 'traces' (a list of trace files)", source=where,
                              column="traces")
         paths = tuple(str((base / t).resolve()) if not Path(t).is_absolute() else t for t in traces)
+        for name in ("map", "units", "options"):     # checked before they are merged
+            for what, tbl in (("the entry's", raw.get(name) or {}), ("[defaults]'", defaults.get(name, {}))):
+                if not isinstance(tbl, dict):
+                    raise InputError(f"{what} '{name}' must be a table of KEY = VALUE (e.g. "
+                                     f"{name} = {{ ... }}), got {type(tbl).__name__}", source=where, column=name)
         mapping = {**defaults.get("map", {}), **(raw.get("map") or {})}
         units = {**defaults.get("units", {}), **(raw.get("units") or {})}
         options = {**defaults.get("options", {}), **(raw.get("options") or {})}
-        for name, tbl in (("map", mapping), ("units", units), ("options", options)):
-            if not isinstance(tbl, dict):
-                raise InputError(f"'{name}' must be a table of KEY = VALUE", source=where, column=name)
         mapping = {str(k): str(v) for k, v in mapping.items()}
         units = {str(k): str(v) for k, v in units.items()}
         diagnose, det, fmi = _fleet_options(options, where)
@@ -290,6 +292,10 @@ def parse_manifest_text(text, fmt, base=".", source="<manifest>") -> Manifest:
         if not isinstance(raws, list):
             raise InputError("'entry' must be an array of tables ([[entry]])", source=source)
         defaults = doc.get("defaults", {})
+        if not isinstance(defaults, dict) or set(defaults) - {"map", "units", "options"}:
+            raise InputError(f"[defaults] holds only the tables map, units and options; got "
+                             f"{sorted(defaults) if isinstance(defaults, dict) else type(defaults).__name__}",
+                             source=source, column="defaults")
         thresholds = doc.get("thresholds", {})
         rows = list(range(1, len(raws) + 1))
     elif fmt == "csv":
@@ -328,11 +334,14 @@ def parse_manifest_text(text, fmt, base=".", source="<manifest>") -> Manifest:
                                      row=row, error=" ".join(raw["_bad"].split())))
             continue
         entries.append(_build_entry(raw, defaults, base, row, source))
-    seen = {}
-    for e in entries:
-        if e.key in seen and e.error is None:
+    seen, folders = {}, {}
+    for e in entries:       # a repeated key would share one result and one output folder
+        if e.key in seen:
             raise InputError(f"{e.key} is listed twice (entries {seen[e.key]} and {e.row})", source=source)
-        seen.setdefault(e.key, e.row)
+        if e.dirname in folders:
+            raise InputError(f"{e.key} and {folders[e.dirname]} would write the same folder "
+                             f"entries/{e.dirname}; rename one (no '__' in names)", source=source)
+        seen[e.key], folders[e.dirname] = e.row, e.key
     return Manifest(entries, dict(thresholds), source)
 
 
