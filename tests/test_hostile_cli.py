@@ -342,3 +342,22 @@ def test_search_refuses_when_no_objective_is_finite():
     res = run_search(lambda x: float(np.sum((x - 0.3) ** 2)) if x[0] > 0.1 else float("nan"),
                      [0.0, 0.0], [1.0, 1.0], method="de", maxiter=20)
     assert np.isfinite(res.fun) and np.allclose(res.x, 0.3, atol=1e-3)
+
+
+@pytest.mark.parametrize("extra,word", [(["--limits-from", "{tr}", "--csv", "{tr}"], "tr.csv"),
+                                        (["--commands", "{tr}", "--json", "{tr}"], "tr.csv"),
+                                        (["--limits", "100,2000,1e5", "--csv", "{out}", "--json", "{out}"],
+                                         "same file")])
+def test_plan_never_writes_over_its_inputs(capsys, tmp_path, extra, word):
+    """fdid plan's outputs are checked against every input (the program, the twin, --limits-from,
+    --commands) and against each other before any work: a trace given as --limits-from and --csv
+    was overwritten by the prediction (found by a review)."""
+    tr = tmp_path / "tr.csv"
+    tr.write_text("t_s,x_cmd_mm,x_mm\n0,0,0\n0.001,1,1\n")
+    before = tr.read_bytes()
+    argv = ["plan", tmp_path / "p.nc", "--model", tmp_path / "m.json"] + \
+        [a.format(tr=tr, out=tmp_path / "o.csv") for a in extra]
+    code, _, err = run(capsys, *argv)
+    assert_one_line(code, err, word)
+    assert "p.nc" not in err                            # refused before the program is read
+    assert tr.read_bytes() == before and not (tmp_path / "o.csv").exists()

@@ -168,6 +168,12 @@ def test_cli_plan_report(machine, tmp_path):
                         "--limits", "100,2000,1e5"], capture_output=True, text=True, timeout=600)
     assert r.returncode == 2 and "row 2" in r.stderr and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+    # an axis the twin does not model: planned, with a warning that it is not predicted
+    nc.write_text("G21 G90 G17 G94\nN10 G1 X12 F3000\nN20 G1 Z-2 F600\nM30\n")
+    r = subprocess.run([sys.executable, "-m", "fdid_fmi.cli", "plan", str(nc), "--model", str(tmp_path / "m.json"),
+                        "--limits", "100,2000,1e5"], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "warning: the program moves ['z']" in r.stdout
 
 
 def test_cli_optimise_through_the_fmu(machine, tmp_path):

@@ -71,13 +71,13 @@ def run(args):
     from ..plan.predict import fmu_axes, model_from_fmu, predict
     from ..plan.reporting import plan_report
 
+    from ..outputs import check_output, same_file
     outs = [o for o in (args.output, args.report, args.json, args.csv) if o]
-    try:
-        from ..outputs import check_output
-        for o in outs:
-            check_output(o, inputs=[args.program, args.model or args.fmu])
-    except ImportError:  # pragma: no cover - older tree
-        pass
+    inputs = [i for i in (args.program, args.model or args.fmu, args.limits_from, args.commands) if i]
+    for k, o in enumerate(outs):
+        check_output(o, inputs=inputs)
+        if any(same_file(o, other) for other in outs[:k]):
+            raise InputError("two outputs name the same file", source=str(o))
     if args.optimize and args.tol is None:
         raise InputError("--optimize needs --tol (contour tolerance in mm)", column="--tol")
     try:
@@ -101,6 +101,10 @@ def run(args):
         raise InputError(f"the model's axes {bad} are not x, y or z (the program's axes)", column="axes")
     print(f"fdid plan: {args.program}: {len(prog.blocks)} blocks, axes moved {prog.axes_used}, "
           f"twin {'FMU ' + str(fmu) if fmu else 'model ' + args.model} (axes {axes}, Ts {Ts * 1e3:.4g} ms)")
+    unmodelled = [a for a in prog.axes_used if a not in axes]
+    if unmodelled:      # the contour error is measured in the model's axes only
+        print(f"  warning: the program moves {unmodelled}, which the twin does not model: their "
+              f"tracking errors, and contour errors out of the model's axes {axes}, are not predicted")
     if prog.ignored:
         print(f"  passed over: {', '.join(f'line {r}: {w}' for r, w in prog.ignored[:20])}"
               + (" ..." if len(prog.ignored) > 20 else ""))
