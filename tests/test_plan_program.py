@@ -115,6 +115,21 @@ def test_overrides_slow_a_block_and_rewrite_the_program(tmp_path):
     assert [b.end.tolist() for b in q.blocks] == [b.end.tolist() for b in p.blocks]
 
 
+def test_rewritten_feeds_land_outside_comments_and_stay_readable():
+    """Found by a review: a ';' inside a '( )' comment took the new F into the comment (the old
+    feed stayed in force); a zero-length G93 block was written as 'Fnan'; a large G93 F value in
+    exponent form (5.4e+06), which neither this parser nor a controller reads."""
+    p = parse_program("G1 X10 (a;b) F600\nG93 G1 X10 F10\nG1 X10.001 F5400000 ; fast\n")
+    assert p.blocks[1].length == 0.0
+    text = write_program(p, {0: 5.0, 1: p.blocks[1].feed, 2: 2 * p.blocks[2].feed})
+    lines = text.splitlines()
+    assert lines[0] == "G1 X10 (a;b) F300"
+    assert lines[1] == "G93 G1 X10 F10"                  # nothing to scale: as written
+    assert lines[2] == "G1 X10.001 F10800000 ; fast"       # G93 is modal: inverse time, positional
+    q = parse_program(text)
+    assert q.blocks[0].feed == pytest.approx(5.0) and q.blocks[2].block_time == pytest.approx(60 / 10.8e6)
+
+
 def test_example_programs_read():
     from pathlib import Path
     ex = Path(__file__).resolve().parents[1] / "examples"

@@ -460,6 +460,9 @@ def write_program(program, feeds_mm_s, path=None, header=None):
                 out.append(head)
             continue
         new = float(feeds_mm_s[b.index])
+        if not (math.isfinite(new) and math.isfinite(b.feed)):     # a zero-length G93 block:
+            out.append(raw)                                         # no feed to scale, as written
+            continue
         if b.inverse_time:
             fword = 60.0 / b.block_time * new / b.feed
         else:
@@ -477,9 +480,9 @@ def _safe_comment(s):
 
 def _replace_f(raw, fword):
     """Replace (or add) the F word of a line: F goes after the last word, before any trailing
-    comment; comments are left as written."""
-    m = _TRAILING_COMMENT.search(raw)
-    code, tail = raw[:m.start()], raw[m.start():]
+    comment; comments are left as written. F is written positionally (6 significant digits):
+    a controller does not read 5.4e+06."""
+    code, tail = _split_trailing_comment(raw)
     pieces, k, depth = [], 0, 0
     while k < len(code):
         c = code[k]
@@ -494,7 +497,25 @@ def _replace_f(raw, fword):
             depth = 0
         pieces.append(c)
         k += 1
-    return f"{''.join(pieces).rstrip()} F{fword:.6g}{tail}"
+    f = np.format_float_positional(fword, precision=6, unique=False, fractional=False, trim="-")
+    return f"{''.join(pieces).rstrip()} F{f}{tail}"
 
 
-_TRAILING_COMMENT = re.compile(r"(\s*\([^()]*\))*\s*(;.*)?$")
+def _split_trailing_comment(raw):
+    """(code, trailing comments) of a line: a ';' comment starts only outside parentheses (as
+    :func:`_strip_comments` reads it), and parenthesised comments after the last word go with it."""
+    depth, cut = 0, len(raw)
+    for k, c in enumerate(raw):
+        if c == "(":
+            depth = 1
+        elif c == ")":
+            depth = 0
+        elif c == ";" and not depth:
+            cut = k
+            break
+    head = raw[:cut]
+    m = _TRAILING_PARENS.search(head)
+    return head[:m.start()], head[m.start():] + raw[cut:]
+
+
+_TRAILING_PARENS = re.compile(r"(\s*\([^()]*\))*\s*$")
