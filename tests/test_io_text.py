@@ -333,3 +333,12 @@ def test_axis_last_names_are_recognised(tmp_path):
     p = tmp_path / "vy.csv"
     p.write_text("t_s,y_cmd_mm,y_mm,v_y_mm_s\n" + _rows(cols=3))
     assert read_trace(p).roles["y"] == {"cmd": "y_cmd_mm", "act": "y_mm", "vel": "v_y_mm_s"}
+
+
+def test_latin1_comment_with_next_line_character_is_still_a_comment(tmp_path):
+    """'…' in Windows-1252 is byte 0x85, which Latin-1 decodes to U+0085; str.splitlines split
+    the comment there, made its tail a 'header' and refused the file (found by a review)."""
+    p = tmp_path / "cp1252.csv"
+    p.write_bytes(b"# Messung\x85 Achse X\n" + ("t_s,x_cmd_mm,x_mm\n" + _rows()).encode("latin-1"))
+    tr = read_trace(p)
+    assert tr.n == 200 and tr.roles["x"] == {"cmd": "x_cmd_mm", "act": "x_mm"}

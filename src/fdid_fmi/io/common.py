@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import codecs
 import hashlib
+import re
 from pathlib import Path
 
 from ..errors import InputError
@@ -18,6 +19,14 @@ def check_file(path) -> Path:
     if p.stat().st_size == 0:
         raise InputError("file is empty (0 bytes)", source=str(p))
     return p
+
+
+def text_lines(text):
+    """Lines of a text file, split at CR LF, CR or LF only: ``str.splitlines`` also splits at
+    U+0085, U+2028, form feeds, ..., which a Latin-1 comment may hold ('…' in Windows-1252
+    reads as U+0085), and would shift the row numbers the errors report."""
+    lines = re.split(r"\r\n|\r|\n", text)
+    return lines[:-1] if lines and lines[-1] == "" else lines
 
 
 _BOMS = ((codecs.BOM_UTF32_LE, "utf-32"), (codecs.BOM_UTF32_BE, "utf-32"),

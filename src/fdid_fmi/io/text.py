@@ -38,7 +38,7 @@ import numpy as np
 from ..errors import InputError
 from ..trace import Trace
 from .columns import assemble
-from .common import file_sha256, read_text_file
+from .common import file_sha256, read_text_file, text_lines
 
 LAYOUTS = ("auto", "columns", "siso-gui", "verify-gui")
 MAX_COLUMNS = 10000       # columns of a trace file (bounded work; servo traces have tens)
@@ -87,7 +87,7 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
         raise InputError(f"unknown layout '{layout}'; expected one of {', '.join(LAYOUTS)}",
                          source=src, column="layout")
     text = read_text_file(path)
-    entries = [(i + 1, ln) for i, ln in enumerate(text.splitlines())
+    entries = [(i + 1, ln) for i, ln in enumerate(text_lines(text))
                if ln.strip() and not ln.lstrip().startswith(("#", "%"))]
     if not entries:
         raise InputError("file is empty (no header and no data rows)", source=src)

@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..io.common import text_lines
 
 INCH = 25.4
 _PLANES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}   # (first, second, normal) axis index
@@ -241,7 +242,7 @@ def parse_program(text, source="<string>", start=(0.0, 0.0, 0.0)):
     st = {"motion": None, "plane": 17, "units": "mm", "distance": 90, "arc distance": 91.1,
           "feed mode": 94, "feed": None, "f_word": None}
     blocks, ignored = [], []
-    lines = text.splitlines()
+    lines = text_lines(text)
     for row, raw in enumerate(lines, 1):
         line = raw.strip()
         if not line or line.startswith("%"):
