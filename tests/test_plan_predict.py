@@ -174,6 +174,15 @@ def test_cli_plan_report(machine, tmp_path):
                         "--limits", "100,2000,1e5"], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
     assert "warning: the program moves ['z']" in r.stdout
+    # --range cuts the --limits-from trace (it was ignored): x moves only before 0.1 s
+    t = np.arange(1000) * 1e-3
+    xs = np.clip(t, 0, 0.1) ** 2 * 100
+    np.savetxt(tmp_path / "lim.csv", np.column_stack([t, xs, xs, xs, xs]), delimiter=",", comments="",
+               header="t_s,x_cmd_mm,x_mm,y_cmd_mm,y_mm")
+    r = subprocess.run([sys.executable, "-m", "fdid_fmi.cli", "plan", str(nc), "--model", str(tmp_path / "m.json"),
+                        "--limits-from", str(tmp_path / "lim.csv"), "--range", "0.2:0.9"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 2 and "does not move" in r.stderr, r.stderr[-2000:]
 
 
 def test_cli_optimise_through_the_fmu(machine, tmp_path):

@@ -47,13 +47,23 @@ def register(sub):
     p.set_defaults(func=run)
 
 
+def _ranged_trace(path, args):
+    """A trace of --limits-from / --commands, cut to --range when one is given (one range)."""
+    from .mapping import trace_from_args
+    tr = trace_from_args(path, args)
+    ranges = tr.meta.get("ranges")
+    if ranges:
+        if len(ranges) != 1:
+            raise InputError("give one --range for fdid plan's trace", source="--range")
+        tr = tr.slice(*ranges[0])
+    return tr
+
+
 def _limits(args, axes_needed):
     from ..plan.interpolate import limits_from_trace, parse_limits
-    from .mapping import trace_from_args
     lim = {}
     if args.limits_from:
-        tr = trace_from_args(args.limits_from, args)
-        lim.update(limits_from_trace(tr))
+        lim.update(limits_from_trace(_ranged_trace(args.limits_from, args)))
     for text in args.limits:
         lim = parse_limits(text, lim)
     missing = [a for a in axes_needed if a not in lim]
@@ -109,8 +119,7 @@ def run(args):
         print(f"  passed over: {', '.join(f'line {r}: {w}' for r, w in prog.ignored[:20])}"
               + (" ..." if len(prog.ignored) > 20 else ""))
     if args.commands:
-        from .mapping import trace_from_args
-        tr = trace_from_args(args.commands, args)
+        tr = _ranged_trace(args.commands, args)
         if abs(tr.Ts - Ts) > 1e-3 * Ts:
             tr = tr.resample(Ts)
         ip = commands_from_trace(prog, tr, axes)
