@@ -342,3 +342,14 @@ def test_latin1_comment_with_next_line_character_is_still_a_comment(tmp_path):
     p.write_bytes(b"# Messung\x85 Achse X\n" + ("t_s,x_cmd_mm,x_mm\n" + _rows()).encode("latin-1"))
     tr = read_trace(p)
     assert tr.n == 200 and tr.roles["x"] == {"cmd": "x_cmd_mm", "act": "x_mm"}
+
+
+def test_gui_layout_refuses_a_header_with_other_units(tmp_path):
+    """--layout siso-gui reads s and mm; a header 't_ms,x_um,e_um' was skipped and the data read
+    as s and mm (Ts = 1 s, positions 1000x too large; found by a review)."""
+    p = tmp_path / "gui.csv"
+    p.write_text("t_ms,x_um,e_um\n" + "\n".join(f"{k},{k * 10},{1}" for k in range(100)))
+    with pytest.raises(InputError, match="siso-gui.*'ms'"):
+        read_text(p, layout="siso-gui")
+    p.write_text("t_s,x_mm,e_mm\n" + "\n".join(f"{k * 0.001},{k * 0.01},0.001" for k in range(100)))
+    assert read_text(p, layout="siso-gui").Ts == pytest.approx(0.001)

@@ -35,9 +35,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import units as U
 from ..errors import InputError
 from ..trace import Trace
-from .columns import assemble
+from .columns import assemble, split_unit
 from .common import file_sha256, read_text_file, text_lines
 
 LAYOUTS = ("auto", "columns", "siso-gui", "verify-gui")
@@ -135,6 +136,14 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
                              source=src, column="axes")
         names = ["t"] + [f"{a}_{k}" for a in ax for k in ("act", "err")]
         file_units = {n: ("s" if n == "t" else "mm") for n in names}
+        if has_header:      # the layout fixes s and mm: a header saying otherwise is not skipped
+            hnames, hunits = _parse_header(first, src, entries[0][0])
+            for j, h in enumerate(hnames[:need]):
+                u, want = hunits.get(h) or split_unit(h)[1], ("s" if j == 0 else "mm")
+                if u is not None and U.normalise_unit(u, source=src, column=h) != want:
+                    raise InputError(f"layout '{layout}' reads {GUI_TEXT[layout]}, but the header gives "
+                                     f"'{u}'; use the columns layout (the header's units then hold)",
+                                     source=src, column=h)
         if mapping:
             raise InputError(f"layout '{layout}' fixes the columns ({GUI_TEXT[layout]}); "
                              f"a mapping is not used with it", source=src, column="mapping")
