@@ -60,6 +60,12 @@ def test_layout_option(tmp_path):
     tr = trace_from_args(args.trace, args)
     assert tr.axes == ["z"] and tr.meta["layout"] == "siso-gui"
     np.testing.assert_allclose(tr.error("z"), 0.02, atol=1e-12)
+    # a file with a header takes its axes from the column names: --axes would be ignored
+    h = tmp_path / "named.csv"
+    h.write_text("t_s,x_cmd_mm,x_mm\n" + "\n".join(f"{k * 0.001},{k * 0.1},{k * 0.1}" for k in range(10)))
+    args = parser().parse_args([str(h), "--axes", "z"])
+    with pytest.raises(InputError, match="--axes.*column names"):
+        trace_from_args(args.trace, args)
 
 
 def test_mat_and_xml_refuse_text_options(tmp_path, shared_data):

@@ -140,6 +140,10 @@ def trace_from_args(path, args):
     else:
         kw = {"layout": layout, "axes": axes}
     trace = read_trace(path, mapping=mapping, units=units, **kw)
+    if axes and trace.meta.get("layout") not in ("emps", "siso-gui", "verify-gui"):
+        # elsewhere the axes come from the column names or --map: --axes would be ignored
+        raise InputError(f"--axes names the axes of the GUI layouts and of EMPS; this file's axes "
+                         f"{trace.axes} come from its column names or --map", source=str(path))
     if ranges:
         trace.select(ranges)  # raises a clear InputError for a range outside the data
         trace.meta["ranges"] = ranges
