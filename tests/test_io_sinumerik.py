@@ -144,6 +144,8 @@ def test_sinumerik_errors(tmp_path, sat):
                          '<float name="m_dProcessUpdateTime">1,25e-4<', 1), ["m_dProcessUpdateTime", "number"]),
     (lambda t: t.replace('name="m_ValueVector"', 'name="m_Other"', 1), ["m_ValueVector", "missing"]),
     (lambda t: t.replace('encoding="ISO-8859-1"', 'encoding="x-bogus"', 1), ["cannot be decoded", "x-bogus"]),
+    (lambda t: t.replace('<unsigned_int name="m_uNodeId">62<', '<unsigned_int name="m_uNodeId">61<', 1),
+     ["node id 61", "twice"]),
 ])
 def test_a_damaged_export_is_one_error_line(xml, tmp_path, edit, words):
     """Damage an export the reader does not expect (found by a review: each one escaped as a

@@ -162,6 +162,8 @@ def _nodes(root, src):
     out = {}
     for n in root.iter("PlatformSignalNode"):
         nid = _member(n, "unsigned_int", "m_uNodeId", int, source=src)
+        if nid in out:      # a later node would silently replace the earlier one
+            raise InputError(f"signal node id {nid} appears twice", source=src, column=f"node{nid}")
         inst = _member(n, "integer", "m_iUniqueInstanceId", int, default=-1, source=src)
         series = []
         lst = n.find("LinkedList[@name='m_TimeSeriesList']")
