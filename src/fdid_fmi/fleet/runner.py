@@ -243,7 +243,11 @@ class _Dask:
             except (OSError, TimeoutError) as exc:
                 raise InputError(f"cannot connect to the Dask scheduler ({exc})", source=str(scheduler)) from None
         self.client = client
-        info = client.scheduler_info()
+        try:
+            info = client.scheduler_info()
+        except Exception:
+            self.close()            # a client this runner opened is not left behind
+            raise
         self.workers = len(info.get("workers", {}))
         self.name = f"dask {client.scheduler.address} ({self.workers} workers)"
 
