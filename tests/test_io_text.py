@@ -353,3 +353,12 @@ def test_gui_layout_refuses_a_header_with_other_units(tmp_path):
         read_text(p, layout="siso-gui")
     p.write_text("t_s,x_mm,e_mm\n" + "\n".join(f"{k * 0.001},{k * 0.01},0.001" for k in range(100)))
     assert read_text(p, layout="siso-gui").Ts == pytest.approx(0.001)
+
+
+def test_utf8_bom_on_latin1_text(tmp_path):
+    """An editor's UTF-8 BOM in front of Latin-1 text (a 'µ' byte 0xB5 further on): the BOM is not
+    read into the first column's name (it was 'ï»¿t_s', and no time column was found)."""
+    p = tmp_path / "bom.csv"
+    p.write_bytes(b"\xef\xbb\xbf# Achse X, Aufl\xf6sung 0.1 \xb5m\n" + ("t_s,x_cmd_mm,x_mm\n" + _rows()).encode())
+    tr = read_trace(p)
+    assert tr.n == 200 and tr.roles["x"] == {"cmd": "x_cmd_mm", "act": "x_mm"}

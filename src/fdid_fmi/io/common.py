@@ -56,8 +56,8 @@ def read_text_file(path) -> str:
         raise InputError(f"is not a text file: NUL byte at offset {k};{hint}", source=str(p))
     try:
         return raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        return raw.decode("latin-1")
+    except UnicodeDecodeError:     # a UTF-8 BOM on Latin-1 text is still a BOM, not "ï»¿"
+        return raw.removeprefix(codecs.BOM_UTF8).decode("latin-1")
 
 
 def file_sha256(path) -> str:
