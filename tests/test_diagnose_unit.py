@@ -155,6 +155,23 @@ def test_report_is_self_contained_html_with_figure_data(tmp_path):
     assert j["title"] == "a test report"
 
 
+def test_report_data_survives_hostile_text_and_never_writes_through_a_symlink(tmp_path):
+    """Found by a review: a meta value '<!--<script>' left the embedded JSON unclosed, and
+    ``Report.write`` followed a symlink at the output path onto the file it points to."""
+    evil = "run <!--<script> A </script>"
+    rep = Report("t", meta={"source": evil})
+    text = rep.html()
+    blob = re.search(r"<script type='application/json' id='report-data'>(.*?)</script>", text, re.S).group(1)
+    assert "<" not in blob and json.loads(blob)["meta"]["source"] == evil
+    target = tmp_path / "input_trace.csv"
+    target.write_text("t_s,x_cmd_mm,x_mm\n")
+    link = tmp_path / "report.html"
+    link.symlink_to(target)
+    rep.write(link)
+    assert target.read_text() == "t_s,x_cmd_mm,x_mm\n"          # the link is replaced, not followed
+    assert not link.is_symlink() and "report-data" in link.read_text()
+
+
 def test_refits_keep_the_users_locked_poles():
     """A pole the user locked (``--lock-complex``) stays locked in every refit of the diagnosis:
     searched in none, and read back as locked after a refit (the old recipe searched it)."""

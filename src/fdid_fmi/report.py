@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .model import jsonable
+from .outputs import atomic_write
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;max-width:1100px;
@@ -141,21 +142,20 @@ class Report:
                 if caption:
                     out.append(f"<figcaption>{html.escape(caption)}</figcaption>")
                 out.append("</figure>")
-        data = json.dumps(self.to_dict()).replace("</", "<\\/")
+        # every '<' escaped: no user text (a file name, a port description) can end the script
+        # element or open a comment in it (JSON reads \u003c back as '<')
+        data = json.dumps(self.to_dict()).replace("<", "\\u003c")
         out.append(f"<script type='application/json' id='report-data'>{data}</script>")
         out.append("</body></html>")
         return "\n".join(out)
 
     def write(self, path):
-        """Write the self-contained HTML file; returns its Path."""
-        path = Path(path)
-        path.write_text(self.html(), encoding="utf-8")
-        return path
+        """Write the self-contained HTML file atomically (``outputs.atomic_write``: a symlink at
+        ``path`` is replaced, never followed); returns its Path."""
+        return atomic_write(path, self.html())
 
     def write_json(self, path):
-        path = Path(path)
-        path.write_text(json.dumps(self.to_dict(), indent=1), encoding="utf-8")
-        return path
+        return atomic_write(path, json.dumps(self.to_dict(), indent=1))
 
 
 def _cell(v, fmt):
