@@ -202,6 +202,16 @@ def test_control_characters_in_text_are_refused(field, value):
         DriveModel.from_dict(d)
 
 
+@pytest.mark.parametrize("axis", ["x", None])
+def test_one_command_per_axis(axis):
+    """A second command on axis x (never fed: the simulation ignored it) or a command without an
+    axis (exported as 'None_x_cmd') is refused when the model is built (found by a review)."""
+    d = model_dict()
+    d["inputs"][2].update(kind="command", axis=axis, unit="mm")
+    with pytest.raises(InputError, match="exactly one command input"):
+        DriveModel.from_dict(d)
+
+
 def test_duplicate_names_are_refused():
     d = model_dict()
     d["inputs"][2]["name"] = "x_cmd"

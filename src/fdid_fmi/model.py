@@ -156,6 +156,11 @@ class DriveModel:
                 raise InputError("contains NaN or inf", column=nm)
         if not (np.isfinite(self.Ts) and self.Ts > 0):
             raise InputError(f"sample time must be positive, got {self.Ts!r}", column="Ts")
+        axes = self.axes
+        for prt in self.inputs:     # one command per axis: a second one would never be fed
+            if prt.kind == "command" and (not isinstance(prt.axis, str) or axes.count(prt.axis) > 1):
+                raise InputError(f"each axis needs exactly one command input; axis {prt.axis!r} "
+                                 f"has {axes.count(prt.axis)}", column=prt.name)
         for prt in self.inputs:
             if prt.kind not in INPUT_KINDS:
                 raise InputError(f"input kind '{prt.kind}' not in {INPUT_KINDS}", column=prt.name)
