@@ -86,3 +86,19 @@ def test_integration_drift_matches_monte_carlo():
     x_end = np.cumsum(np.cumsum(a, axis=1), axis=1)[:, -1] / fs ** 2
     assert np.std(x_end) == pytest.approx(integration_drift(noise, 0.0, 1 / fs, T), rel=0.15)
     assert integration_drift(0.0, 2.0, 1 / fs, 1.0) == pytest.approx(1.0)
+
+
+def test_written_trace_keeps_late_time_stamps_apart(tmp_path):
+    """A controller trace starting at t = 123456 s with Ts = 0.4 ms: the aligned CSV wrote time
+    with 9 digits, so samples collided and the file could not be read back (found by a review)."""
+    import numpy as np
+    from fdid_fmi.align.writer import write_trace_csv
+    from fdid_fmi.io import read_trace
+    from fdid_fmi.trace import Channel, Trace
+    t = 123456.0 + np.arange(50) * 4e-4
+    x = np.linspace(0.0, 1.0, 50)
+    tr = Trace(t=t, channels={"x_cmd": Channel("x_cmd", "mm", x), "x_act": Channel("x_act", "mm", 0.9 * x)},
+               roles={"x": {"cmd": "x_cmd", "act": "x_act"}}, source="mem")
+    back = read_trace(write_trace_csv(tr, tmp_path / "aligned.csv"))
+    np.testing.assert_array_equal(back.t, t)
+    np.testing.assert_array_equal(back.act("x"), tr.act("x"))

@@ -33,6 +33,7 @@ def write_trace_csv(trace: Trace, path) -> Path:
             cols.append(ch.data)
     data = np.column_stack(cols)
     lines = [",".join(header)]
-    lines += [f"{r[0]:.9g}," + ",".join(f"{v:.10g}" for v in r[1:]) for r in data.tolist()]
+    # shortest round-trip text of every double: 9 digits made t = 123456.001 and 123456.0012 equal
+    lines += [",".join(repr(v) for v in r) for r in data.tolist()]
     atomic_write(path, "\n".join(lines) + "\n")
     return Path(path)
