@@ -120,6 +120,22 @@ def test_cli_end_to_end(short, tmp_path, capsys):
                "--orientation", str(js), "-o", str(tmp_path / "again.csv")])
     again = capsys.readouterr().out
     assert rc == 0 and "| acc_tool | orientation | alpha |" in again and "rotation about" not in again
+    # found by a review: a calibration that does not name the sensor was silently not used, a
+    # matrix that is no rotation was quietly made one, a low-pass above a sensor's Nyquist crashed
+    renamed = tmp_path / "acc2.csv"
+    renamed.write_bytes(run["sensors"]["acc_tool"].read_bytes())
+    bad = json.loads(js.read_text())
+    for sen in bad["sensors"]:
+        if sen.get("rotation") is not None:
+            sen["rotation"] = [[5, 1, 0], [0, 0.1, 0], [3, 0, 1]]
+    (tmp_path / "bad.json").write_text(json.dumps(bad))
+    for tail, expected in ((["--acc", str(renamed), "--orientation", str(js)], "no sensor 'acc2'"),
+                           (["--acc", str(run["sensors"]["acc_tool"]), "--orientation", str(tmp_path / "bad.json")],
+                            "not a 3x3 rotation"),
+                           (["--kgm", str(run["sensors"]["kgm"]), "--lowpass", "550"], "Nyquist")):
+        rc = main(["align", str(run["controller"]), "-o", str(tmp_path / "x.csv")] + tail)
+        err = capsys.readouterr().err.strip()
+        assert rc == 2 and expected in err and len(err.splitlines()) == 1, err
 
 
 @pytest.mark.parametrize("argv_tail, expected", [

@@ -133,26 +133,51 @@ def _drift_missing(name, info, window_s, source):
             f"{info['slope_sigma'] * 1e6:.0f} ppm), assumed 0 ppm; a longer record resolves it"]
 
 
-def _given_rotation(orientation, name):
+def _given_rotation(orientation, name, source=None):
+    """The rotation of accelerometer ``name`` from a calibration (None without one). A calibration
+    that does not name this sensor, or whose matrix is no rotation, is refused: silently
+    estimating the rotation again would lose the calibration on a single-axis run."""
     if orientation is None:
         return None, []
     if isinstance(orientation, AlignmentResult):
         try:
             s = orientation.sensor(name)
         except KeyError:
-            return None, []
+            names = [x.name for x in orientation.sensors]
+            raise InputError(f"the orientation calibration has no sensor '{name}' (it has {names}); "
+                             f"name the sensor as in the calibration run (name=...)", source=source,
+                             column="orientation") from None
         if s.rotation is None:
             return None, []
-        return Rotation.from_matrix(np.array(s.rotation)), [e for e in s.estimates if e.step == "orientation"]
+        return _rotation(s.rotation, name, source), [e for e in s.estimates if e.step == "orientation"]
     if name not in orientation:
-        return None, []
+        raise InputError(f"the orientation calibration has no sensor '{name}' (it has "
+                         f"{sorted(orientation)})", source=source, column="orientation")
     v = orientation[name]
     ests = []
     if isinstance(v, dict):
-        ests = [Estimate(**e) for e in v.get("estimates", []) if e.get("step") == "orientation"]
+        try:
+            ests = [Estimate(**e) for e in v.get("estimates", []) if e.get("step") == "orientation"]
+        except (TypeError, AttributeError):
+            raise InputError(f"the calibration's estimates of sensor '{name}' are not estimate entries",
+                             source=source, column="orientation") from None
         v = v["rotation"]
-    rot = v if isinstance(v, Rotation) else Rotation.from_matrix(np.asarray(v, dtype=float))
+    rot = v if isinstance(v, Rotation) else _rotation(v, name, source)
     return rot, ests
+
+
+def _rotation(matrix, name, source):
+    """A proper rotation from a 3x3 matrix (finite, R^T R = I to 1e-6, det +1), else InputError:
+    scipy would quietly turn any matrix into some rotation."""
+    try:
+        R = np.asarray(matrix, dtype=float)
+    except (TypeError, ValueError):
+        R = None
+    if R is None or R.shape != (3, 3) or not np.all(np.isfinite(R)) or \
+            not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or not np.linalg.det(R) > 0:
+        raise InputError(f"the calibration's matrix of sensor '{name}' is not a 3x3 rotation "
+                         f"(orthonormal, determinant +1)", source=source, column="orientation")
+    return Rotation.from_matrix(R)
 
 
 def _align_accelerometer(rec: SensorRecord, t, ref, opts, given):
@@ -172,7 +197,7 @@ def _align_accelerometer(rec: SensorRecord, t, ref, opts, given):
                             f"accelerometer '{name}'")
     mapping = (a0, 1.0)
     clk = _Clocked(rec.tau, f_lp)
-    rot, given_est = _given_rotation(given, name)
+    rot, given_est = _given_rotation(given, name, src)
     sigma, info, dirs = (np.nan, np.nan), {}, {}
     for it in range(opts["iterations"]):
         lo = max(t[0], mapping[0] + mapping[1] * rec.tau[0])
@@ -375,6 +400,11 @@ def align(controller: Trace, sensors, orientation=None, lowpass_hz=10.0, window_
     nyq = 0.5 / Ts
     if not (0 < lowpass_hz < nyq):
         raise InputError(f"lowpass_hz must lie in (0, {nyq:g}) Hz, got {lowpass_hz!r}", column="lowpass_hz")
+    for rec in sensors:
+        if not lowpass_hz < 0.5 * rec.rate_hz:
+            raise InputError(f"lowpass_hz {lowpass_hz:g} Hz is not below the Nyquist frequency "
+                             f"{0.5 * rec.rate_hz:g} Hz of sensor '{rec.name}'", source=rec.source,
+                             column="lowpass_hz")
     if not (0 < aa_fraction <= 1):
         raise InputError(f"aa_fraction must lie in (0, 1], got {aa_fraction!r}", column="aa_fraction")
     ref = controller_references(controller, lowpass_hz)

@@ -101,7 +101,13 @@ def load_orientation(path):
     if not isinstance(d, dict) or d.get("format") != "fdid-fmi alignment":
         raise InputError("is not an alignment file written by fdid align --json", source=src)
     out = {}
-    for s in d.get("sensors", []):
+    sensors = d.get("sensors", [])
+    if not isinstance(sensors, list) or not all(isinstance(s, dict) and isinstance(s.get("name"), str)
+                                                and isinstance(s.get("estimates", []), list)
+                                                for s in sensors):
+        raise InputError("'sensors' must be a list of sensor entries with a name", source=src,
+                         column="sensors")
+    for s in sensors:
         if s.get("kind") == "accelerometer" and s.get("rotation") is not None:
             out[s["name"]] = {"rotation": s["rotation"], "estimates": s.get("estimates", [])}
     if not out:
