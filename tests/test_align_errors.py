@@ -97,6 +97,9 @@ def test_reader_errors(tmp_path):
         read_grid_encoder(_write(tmp_path / "e.csv", "t_s,kgm_x_um,kgm_y_um\n0,1,1\n0.001,1,x\n"))
     with pytest.raises(InputError, match="no column 'bz'"):
         read_accelerometer(_write(tmp_path / "f.csv", "t_s,ax_g,ay_g,az_g\n" + rows), columns=["ax_g", "ay_g", "bz"])
+    # the name says mm, unit=g says acceleration: refused (was read as g, 9806.65x; from a review)
+    with pytest.raises(InputError, match="column name says unit 'mm' but unit=g"):
+        read_accelerometer(_write(tmp_path / "g.csv", "t_s,ax_mm,ay_mm,az_mm\n" + rows), unit="g")
 
 
 def test_cli_end_to_end(short, tmp_path, capsys):

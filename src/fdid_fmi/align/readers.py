@@ -174,8 +174,8 @@ def read_sensor(path, kind, columns=None, time=None, unit=None, axes=("x", "y"),
         vals = ch.data
         if unit is not None:
             stated = tr.meta.get("units_in_file", {}).get(c)
-            if stated not in (None, "1") and UNITS.get(stated, ("",))[0] == quantity:
-                # the name already says a unit: it must agree with the one given
+            if stated not in (None, "1"):
+                # the name already says a unit (of any quantity): it must agree with the one given
                 if stated != unit:
                     raise InputError(f"the column name says unit '{stated}' but unit={unit} was given",
                                      source=src, column=c)
