@@ -202,6 +202,18 @@ def test_control_characters_in_text_are_refused(field, value):
         DriveModel.from_dict(d)
 
 
+@pytest.mark.parametrize("field,value,words", [("format_version", True, "format version True"),
+                                               ("format_version", 0, "format version 0"),
+                                               ("Ts", True, "Ts must be a number"),
+                                               ("Ts", "0.001", "Ts must be a number")])
+def test_header_numbers_are_numbers(field, value, words):
+    """JSON true read as 1 (Ts = 1 s), format version 0 or True accepted (found by a review)."""
+    d = model_dict()
+    d[field] = value
+    with pytest.raises(InputError, match=words):
+        DriveModel.from_dict(d)
+
+
 @pytest.mark.parametrize("axis", ["x", None])
 def test_one_command_per_axis(axis):
     """A second command on axis x (never fed: the simulation ignored it) or a command without an
