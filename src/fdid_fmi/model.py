@@ -371,9 +371,12 @@ def _check_header(d, source, kind):
     if d.get("format") != FORMAT:
         raise InputError(f"is not an fdid-fmi model (format '{d.get('format')}')", source=source)
     v = d.get("format_version")
-    if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= FORMAT_VERSION:
-        raise InputError(f"model format version {v!r} is not one this software reads (1 .. "
+    if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+        raise InputError(f"model format version {v!r} is not a format version (an integer 1 .. "
                          f"{FORMAT_VERSION})", source=source, column="format_version")
+    if v > FORMAT_VERSION:
+        raise InputError(f"model format version {v} is newer than this software reads "
+                         f"({FORMAT_VERSION})", source=source, column="format_version")
     Ts = d.get("Ts", 0.0)
     if isinstance(Ts, bool) or not isinstance(Ts, (int, float)):    # JSON true would read as 1 s
         raise InputError(f"Ts must be a number of seconds, got {Ts!r}", source=source, column="Ts")
