@@ -206,15 +206,16 @@ def oracle_simulate(model, trace_or_commands, Ts=None, start_velocity=None, para
     accelerating, steady ramp otherwise), in pure Python."""
     from fdid_fmi.simulate import _commands, _trim
     cmds, exts, t, ts = _commands(model, trace_or_commands, Ts, None)
+    start_velocity_given = start_velocity
     if start_velocity is None:
-        start_velocity = ({a: (c[1] - c[0]) / ts for a, c in cmds.items()}
+        start_velocity = ({a: (c[1] - c[0]) / model.Ts for a, c in cmds.items()}
                           if isinstance(trace_or_commands, Trace) else {})
     plan = _Plan(model, params)
-    if isinstance(trace_or_commands, Trace):
-        R, ext = run_up(cmds, ts)
+    if isinstance(trace_or_commands, Trace) and start_velocity_given is None:
+        R, ext, v0 = run_up(cmds, model.Ts)
         if R:
             exts_r = {k: np.concatenate([np.full(R, v[0]), v]) for k, v in exts.items()}
-            res = _run(plan, ext, exts_r, np.concatenate([t[0] - ts * np.arange(R, 0, -1), t]), {})
+            res = _run(plan, ext, exts_r, np.concatenate([t[0] - ts * np.arange(R, 0, -1), t]), v0)
             return _trim(res, R)
     return _run(plan, cmds, exts, t, start_velocity)
 

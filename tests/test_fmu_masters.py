@@ -66,7 +66,7 @@ def test_ecos_engine_gives_the_model(twin):
     name, m, val, fmu = twin
     n = min(val.n, 4000)
     cmd = val.cmd("x")[:n]
-    R, ext = run_up({"x": cmd}, m.Ts)                      # as fdid simulate starts the record
+    R, ext, _ = run_up({"x": cmd}, m.Ts)                      # as fdid simulate starts the record
     drive = ext["x"]
     ref = simulate(m, val.slice(val.t[0], val.t[n - 1])).axes["x"]["position"]
     ss = EcosSimulationStructure()

@@ -158,3 +158,48 @@ def test_two_axis_coupled_model_simulates():
     sim = simulate(m, {"x": moves(seed=1), "y": moves(seed=2)}, Ts=TS)
     assert np.all(np.isfinite(sim.y)) and set(sim.axes) == {"x", "y"}
     assert np.max(np.abs(sim.u[:, [1, 3]])) <= 1.0 + 1e-12
+
+
+def _trace_of(cmds, Ts):
+    from fdid_fmi.trace import Channel, Trace
+    n = len(next(iter(cmds.values())))
+    ch = {f"{a}_cmd": Channel(f"{a}_cmd", "mm", np.asarray(c, float)) for a, c in cmds.items()}
+    return Trace(t=np.arange(n) * Ts, channels=ch, roles={a: {"cmd": f"{a}_cmd"} for a in cmds}, source="mem")
+
+
+def test_run_up_keeps_a_steadily_moving_axis_moving():
+    """A two-axis record: x starts accelerating (a run-up from rest is prepended), y moves
+    steadily at 10 mm/s. y starts in its steady ramp, as with start='ramp' (it started at rest,
+    its error 0, 0.006, 0.012 mm ... instead of 0.143 mm; found by a review)."""
+    import fmu_support as fs
+    m = fs.coupled_model(kxy=0.0, kyx=0.0)                  # two independent axes
+    t = np.arange(600) * m.Ts
+    tr = _trace_of({"x": 5 + 14 * t + 420 * t ** 2, "y": 2 + 10 * t}, m.Ts)
+    auto, ramp = simulate(m, tr), simulate(m, tr, start="ramp")
+    e = auto.axes["y"]["error"]
+    assert abs(e[0]) > 1e-3                                            # a real following error
+    np.testing.assert_allclose(e, ramp.axes["y"]["error"], rtol=0, atol=1e-12)
+    assert auto.axes["x"]["velocity"][0] != ramp.axes["x"]["velocity"][0]   # x: its run-up
+
+
+def test_simulate_refuses_what_it_would_ignore():
+    """Unknown axes, parameters or externals, a negative friction level, a NaN sample time and
+    options a quasi-static model does not take are errors (they were ignored; found by a review);
+    a given start velocity means a steady ramp start, no run-up."""
+    m = siso_model()
+    xr = moves()
+    for kw, words in (({"start_velocity": {"z": 50.0}}, "start_velocity"),
+                      ({"params": {"x_friction_levle": 5.0}}, "unknown parameter"),
+                      ({"params": {"x_friction_level": -3.0}}, ">= 0"),
+                      ({"params": {"x_friction_level": "abc"}}, "finite number"),
+                      ({"externals": {"foo": xr}}, "not external inputs")):
+        with pytest.raises(InputError, match=words):
+            simulate(m, {"x": xr}, Ts=TS, **kw)
+    with pytest.raises(InputError, match="resample"):
+        simulate(m, {"x": xr}, Ts=float("nan"))
+    t = np.arange(600) * TS
+    x = 5 + 14 * t + 420 * t ** 2
+    tr = _trace_of({"x": x}, TS)
+    given = simulate(m, tr, start_velocity={"x": (x[1] - x[0]) / TS})
+    np.testing.assert_array_equal(given.y, simulate(m, tr, start="ramp").y)
+    assert not np.array_equal(given.y, simulate(m, tr).y)          # auto: the run-up from rest

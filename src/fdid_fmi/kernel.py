@@ -94,6 +94,17 @@ def _lib():
     return lib
 
 
+def _number(value, name):
+    """A finite float from a parameter value, else InputError naming the parameter."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = float("nan")
+    if not np.isfinite(v):
+        raise InputError(f"must be a finite number, got {value!r}", column=name)
+    return v
+
+
 def _dptr(a):
     return a.ctypes.data_as(_D)
 
@@ -164,15 +175,26 @@ class Stepper:
         self.views = v          # numpy views into the C state (writing them sets the inputs)
 
     def set_parameters(self, params, axes):
-        """``<axis>_friction_on / _friction_level / _v_tilde`` overrides (the FMU parameters)."""
+        """``<axis>_friction_on / _friction_level / _v_tilde`` overrides (the FMU parameters),
+        checked as the FMU checks them (level finite and >= 0, v_tilde finite and > 0); an
+        unknown name is an error, not ignored."""
+        known = {f"{a}_{p}" for a in axes for p in ("friction_on", "friction_level", "v_tilde")}
+        unknown = sorted(set(params) - known)
+        if unknown:
+            raise InputError(f"unknown parameter(s) {unknown}; expected some of {sorted(known)}",
+                             column="params")
         for k, a in enumerate(axes):
             if f"{a}_friction_level" in params:
-                self.views["level"][k] = float(params[f"{a}_friction_level"])
+                lv = _number(params[f"{a}_friction_level"], f"{a}_friction_level")
+                if not lv >= 0:
+                    raise InputError(f"the friction level must be finite and >= 0, got {lv!r}",
+                                     column=f"{a}_friction_level")
+                self.views["level"][k] = lv
             if f"{a}_v_tilde" in params:
-                vt = params[f"{a}_v_tilde"]
-                if not (np.isfinite(vt) and vt > 0):
+                vt = _number(params[f"{a}_v_tilde"], f"{a}_v_tilde")
+                if not vt > 0:
                     raise InputError(f"v_tilde must be > 0 mm/s, got {vt!r}", column=f"{a}_v_tilde")
-                self.views["vtilde"][k] = float(vt)
+                self.views["vtilde"][k] = vt
             if f"{a}_friction_on" in params:
                 self.views["on"][k] = 1.0 if params[f"{a}_friction_on"] else 0.0
 

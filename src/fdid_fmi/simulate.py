@@ -77,10 +77,15 @@ def run_up(cmds, Ts, max_seconds=2.0):
     past within ``max_seconds``, the parabola back to the vertex is a run-up that starts at rest
     and reaches the first sample with the right position, velocity and acceleration.
 
+    The other axes of the record continue their first step backwards, a steady ramp at their
+    start velocity (constant when they start at rest), so that a two-axis record whose second
+    axis is already moving steadily is not started with that axis at rest.
+
     Returns
     -------
     R : int, run-up length in samples (0: none needed or not plausible)
     ext : dict axis -> extended commands (run-up + commands)
+    v0 : dict axis -> start velocity of the extended commands, mm/s (0 on a run-up axis)
     """
     vertex = {}                          # axis -> (du, dd, k*) of a parabola whose rest point is past
     for a, c in cmds.items():
@@ -92,17 +97,20 @@ def run_up(cmds, Ts, max_seconds=2.0):
             vertex[a] = (du, dd, du / (2 * dd))    # vertex at k = -k*
     R = int(np.ceil(max(v[2] for v in vertex.values()))) if vertex else 0
     if R == 0:
-        return 0, dict(cmds)
+        return 0, dict(cmds), {}
     k = np.arange(-R, 0, dtype=float)
-    ext = {}
+    ext, v0 = {}, {}
     for a, c in cmds.items():
         if a in vertex:
             du, dd, kv = vertex[a]
             kk = np.maximum(k, -kv)              # at rest before its vertex
             ext[a] = np.concatenate([c[0] + kk * du + kk * kk * dd, c])
-        else:
-            ext[a] = np.concatenate([np.full(R, c[0]), c])
-    return R, ext
+            v0[a] = 0.0
+        else:                                    # its first step continued backwards
+            step = c[1] - c[0] if len(c) > 1 else 0.0
+            ext[a] = np.concatenate([c[0] + k * step, c])
+            v0[a] = step / Ts
+    return R, ext, v0
 
 
 def simulate(model, trace_or_commands, Ts=None, start_velocity=None, params=None, externals=None,
@@ -132,26 +140,34 @@ def simulate(model, trace_or_commands, Ts=None, start_velocity=None, params=None
     -------
     SimResult
     """
+    if start not in ("auto", "ramp"):
+        raise InputError(f"start must be 'auto' or 'ramp', got {start!r}", column="start")
     cmds, exts, t, ts = _commands(model, trace_or_commands, Ts, externals)
     if isinstance(model, QuasiStaticModel):
+        given = [k for k, v in (("start_velocity", start_velocity), ("params", params),
+                                ("externals", externals)) if v]
+        if given:
+            raise InputError(f"{', '.join(given)} do not apply to a quasi-static model", column=given[0])
         from .identify.quasi_static import predict_quasi_static
         return predict_quasi_static(model, cmds, t)
-    if abs(ts - model.Ts) > 1e-3 * model.Ts:
+    if not abs(ts - model.Ts) <= 1e-3 * model.Ts:       # NaN fails too
         raise InputError(f"commands are sampled at {ts:g} s but the model at {model.Ts:g} s; "
                          f"resample the trace", column="Ts")
-    if start_velocity is None:
-        start_velocity = ({a: (c[1] - c[0]) / ts for a, c in cmds.items()}
-                          if isinstance(trace_or_commands, Trace) else {})
+    unknown = sorted(set(start_velocity or {}) - set(cmds))
+    if unknown:
+        raise InputError(f"start_velocity names axes {unknown}; the model's axes are {sorted(cmds)}",
+                         column="start_velocity")
     compiled = kernel.CompiledModel(model)
-    if start == "auto" and isinstance(trace_or_commands, Trace):
-        R, ext = run_up(cmds, ts)
-        if R:
-            exts_r = {k: np.concatenate([np.full(R, v[0]), v]) for k, v in exts.items()}
-            t_r = np.concatenate([t[0] - ts * np.arange(R, 0, -1), t])
-            return _trim(_run(compiled, ext, exts_r, t_r, {}, params), R)
-    elif start not in ("auto", "ramp"):
-        raise InputError(f"start must be 'auto' or 'ramp', got {start!r}", column="start")
-    return _run(compiled, cmds, exts, t, start_velocity, params)
+    if start_velocity is None and isinstance(trace_or_commands, Trace):
+        if start == "auto":     # a given start velocity is a steady ramp start: no run-up
+            R, ext, v0 = run_up(cmds, model.Ts)
+            if R:
+                exts_r = {k: np.concatenate([np.full(R, v[0]), v]) for k, v in exts.items()}
+                t_r = np.concatenate([t[0] - ts * np.arange(R, 0, -1), t])
+                return _trim(_run(compiled, ext, exts_r, t_r, v0, params), R)
+        # the record's first step, over the model's sample time (the steady ramp the run steps)
+        start_velocity = {a: (c[1] - c[0]) / model.Ts for a, c in cmds.items()}
+    return _run(compiled, cmds, exts, t, start_velocity or {}, params)
 
 
 def _trim(res, R):
@@ -161,6 +177,20 @@ def _trim(res, R):
 
 
 def _commands(model, src, Ts, externals):
+    cmds, exts, t, ts = _command_arrays(model, src, Ts, externals)
+    names = {p.name for p in model.inputs if p.kind == "external"} if isinstance(model, DriveModel) else set()
+    unknown = sorted(set(externals or {}) - names)
+    if unknown:
+        raise InputError(f"externals names {unknown}, which are not external inputs of the model "
+                         f"({sorted(names)})", column="externals")
+    for k, v in exts.items():
+        if v.shape != t.shape or not np.isfinite(v).all():
+            raise InputError(f"external input '{k}' must be {t.size} finite numbers, one per command "
+                             f"sample (got shape {v.shape})", column=k)
+    return cmds, exts, t, ts
+
+
+def _command_arrays(model, src, Ts, externals):
     axes = model.axes
     if isinstance(src, Trace):
         cmds = {a: np.asarray(src.cmd(a), float) for a in axes}

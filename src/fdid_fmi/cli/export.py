@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..errors import InputError
 from ..model import load_model
 from ..outputs import check_output
 from . import naming
@@ -29,10 +30,16 @@ def register(sub):
 
 def run(args):
     from ..fmu import export_fmu
+    platforms = [s.strip() for s in args.platforms.split(",") if s.strip()]
+    if not platforms:
+        raise InputError(f"--platforms '{args.platforms}' names no platform (linux64, win64)",
+                         source="--platforms")
+    if args.backend == "python" and args.platforms != "linux64":
+        raise InputError("--platforms applies to --backend c; pythonfmu builds its own binaries",
+                         source="--platforms")
     out = Path(args.output) if args.output else Path(args.model).with_suffix(".fmu")
     check_output(out, inputs=[args.model], what="FMU", suffix=".fmu")
     model = load_model(args.model)
-    platforms = [s.strip() for s in args.platforms.split(",") if s.strip()]
     with naming(args.model):
         path = export_fmu(model, out, fmi_version=int(args.fmi), platforms=platforms,
                           backend=args.backend, model_identifier=args.name)

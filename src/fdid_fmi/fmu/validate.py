@@ -352,7 +352,7 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
              if (role, ak[a]) in var}
     # the same start as the reference: a run-up from rest for records that start accelerating
     # (simulate.run_up, as earlier rows of the table), else the steady ramp at the start velocity
-    R, ext_cmds = run_up(cmds, trace.Ts) if start == "auto" else (0, cmds)
+    R, ext_cmds, v0_run = run_up(cmds, Ts) if start == "auto" else (0, cmds, {})
     table = {names[("cmd", a)]: ext_cmds[a] for a in axes}
     for v in lay.inputs:
         if v.role == "ext":
@@ -360,7 +360,7 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
             x = np.asarray(trace.extra(p.params.get("channel", p.name)), float)
             table[v.name] = np.concatenate([np.full(R, x[0]), x])
     if R:
-        v0 = {a: 0.0 for a in axes}
+        v0 = {a: v0_run[a] for a in axes}
         res.start = f"run-up from rest over {R} samples (simulate.run_up)"
     else:
         v0 = {a: (c[1] - c[0]) / Ts for a, c in cmds.items()}

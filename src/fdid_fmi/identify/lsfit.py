@@ -129,7 +129,7 @@ class LSProblem:
         s = self.s
         N = tr.n
         cmds = {ins.axis: np.asarray(tr.cmd(ins.axis), float) for ins in s.inputs if ins.kind == "command"}
-        R, ext = run_up(cmds, tr.Ts)
+        R, ext, v0 = run_up(cmds, tr.Ts)
         W = np.zeros((self.m, N + R))
         wref = np.zeros(self.m)
         dw = np.zeros(self.m)
@@ -150,7 +150,8 @@ class LSProblem:
                                      f"range: nothing to identify", source=tr.source, column=ins.name)
                 wref[i] = cmds[ins.axis][0]
                 W[i] = c - wref[i]
-                dw[i] = 0.0 if R else W[i, 1] - W[i, 0]
+                # the steady ramp the record (or its run-up) starts on, as the simulator starts it
+                dw[i] = v0[ins.axis] * tr.Ts if R else W[i, 1] - W[i, 0]
             elif ins.kind == "external":
                 e = np.asarray(tr.extra(ins.channel), float)
                 W[i] = np.concatenate([np.full(R, e[0]), e])
