@@ -124,17 +124,19 @@ def simulate(model, trace_or_commands, Ts=None, start_velocity=None, params=None
     Ts : float, optional
         Sample time of the commands (taken from the trace otherwise); must equal ``model.Ts``.
     start_velocity : dict axis -> mm/s, optional
-        Initial velocity v0 of each axis. Default: 0 (at rest) for command dicts; for a Trace,
-        the commanded velocity of its first two samples (a record that starts in motion).
+        Initial velocity v0 of each axis (a steady ramp start; axes of the model only; ``{}``:
+        at rest). Default: 0 for command dicts; for a Trace, its first step over ``model.Ts``
+        (a record that starts in motion).
     start : ``"auto"`` (default) or ``"ramp"``
-        ``auto``: a Trace that starts accelerating gets a run-up from rest (:func:`run_up`), the
-        most consistent initial state; otherwise (and always with ``ramp``) the steady ramp
-        at ``start_velocity``.
+        ``auto``: a Trace that starts accelerating gets a run-up from rest (:func:`run_up`, its
+        other axes in their steady ramp), the most consistent initial state, unless
+        ``start_velocity`` is given; otherwise (and always with ``ramp``) the steady ramp.
     params : dict, optional
-        Parameter overrides like the FMU's: ``<axis>_friction_on``, ``<axis>_friction_level``,
-        ``<axis>_v_tilde``.
+        Parameter overrides like the FMU's, checked as the FMU checks them:
+        ``<axis>_friction_on``, ``<axis>_friction_level`` (>= 0), ``<axis>_v_tilde`` (> 0).
     externals : dict name -> array, optional
-        Values of ``external`` inputs (taken from the trace's channels otherwise).
+        Values of ``external`` inputs, one finite value per command sample (taken from the
+        trace's channels otherwise).
 
     Returns
     -------
