@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from ..metrics import contour_error, rms_max_um
-from ..model import DriveModel
+from ..model import DriveModel, jsonable
+from ..outputs import atomic_write
 
 
 def register(sub):
@@ -124,7 +125,8 @@ def run(args):
     rep.write(out / "report.html")
     rep.write_json(out / "report.json")
     summary["table"] = rows
-    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
+    # atomic, and strict JSON (a non-finite figure is null, not NaN)
+    atomic_write(out / "summary.json", json.dumps(jsonable(summary), indent=1, allow_nan=False))
     print("\n| trace | axis | e RMS [µm] | FMU disc. RMS [µm] | FMU disc. MAX [µm] | Full LS [µm] | quasi-static [µm] |")
     print("|---|---|---:|---:|---:|---:|---:|")
     for r in rows:
