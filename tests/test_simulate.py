@@ -203,3 +203,15 @@ def test_simulate_refuses_what_it_would_ignore():
     given = simulate(m, tr, start_velocity={"x": (x[1] - x[0]) / TS})
     np.testing.assert_array_equal(given.y, simulate(m, tr, start="ramp").y)
     assert not np.array_equal(given.y, simulate(m, tr).y)          # auto: the run-up from rest
+    from fdid_fmi.identify import identify_quasi_static
+    from fdid_fmi.virtual import MachineConfig, presets, simulate_machine
+    from fdid_fmi.virtual import trajectories as tj
+    cfg = presets.deckel_maho_like()
+    one = MachineConfig(axes=[cfg.axis("x")], Ts=cfg.Ts)
+    qs = identify_quasi_static(simulate_machine(one, tj.linear_moves(n_moves=3, axes=("x",), Ts=cfg.Ts,
+                                                                     seed=1), seed=1), ["x"])
+    for kw, words in (({"start_velocity": {"x": 1.0}}, "quasi-static"), ({"start": "bogus"}, "start must")):
+        with pytest.raises(InputError, match=words):
+            simulate(qs, {"x": np.zeros(50)}, Ts=cfg.Ts, **kw)
+    with pytest.raises(InputError, match="at least 2"):
+        simulate(qs, {"x": np.zeros(1)}, Ts=cfg.Ts)

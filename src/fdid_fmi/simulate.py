@@ -150,6 +150,9 @@ def simulate(model, trace_or_commands, Ts=None, start_velocity=None, params=None
                                 ("externals", externals)) if v]
         if given:
             raise InputError(f"{', '.join(given)} do not apply to a quasi-static model", column=given[0])
+        if len(t) < 2:      # it differentiates the commands
+            raise InputError(f"a quasi-static prediction needs at least 2 command samples, got {len(t)}",
+                             column="commands")
         from .identify.quasi_static import predict_quasi_static
         return predict_quasi_static(model, cmds, t)
     if not abs(ts - model.Ts) <= 1e-3 * model.Ts:       # NaN fails too

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from .description import model_description_fmi2
-from .export import fmu_guid
+from .export import check_generated_fmu, fmu_guid
 from .layout import build_layout
 
 
@@ -56,6 +56,7 @@ def export_python_fmu(model, path, model_identifier, description=None):
         out.mkdir()
         built = FmuBuilder.build_FMU(script, dest=out / f"{model_identifier}.fmu",
                                      project_files=[data / "fdid_layout.json"])
+        check_generated_fmu(built, str(path))     # as export_fmu promises: nothing invalid written
         from ..outputs import atomic_path
         with atomic_path(path) as tmpfmu:
             shutil.copyfile(str(built), str(tmpfmu))
