@@ -259,6 +259,21 @@ def test_simulate_honours_range(capsys, files, tmp_path):
     assert np.loadtxt(tmp_path / "q.csv", delimiter=",", skiprows=1).shape[0] == 202
 
 
+@pytest.mark.parametrize("extra", [["--range", "0.1:0.5,0.6:0.9"], ["--range", "0.1:0.5", "--train-range", "0:1"]])
+def test_diagnose_takes_one_range_per_trace(capsys, files, extra):
+    model, csv = files
+    code, _, err = run(capsys, "diagnose", model, "--train", csv, *extra)
+    assert_one_line(code, err, "one data range per trace")
+
+
+def test_plan_takes_one_range(capsys, files, tmp_path):
+    model, csv = files
+    nc = tmp_path / "p.nc"
+    nc.write_text("G21 G90 G94\nG1 X5 F3000\nM30\n")
+    code, _, err = run(capsys, "plan", nc, "--model", model, "--limits-from", csv, "--range", "0.1:0.5,0.6:0.9")
+    assert_one_line(code, err, "one --range for fdid plan's trace")
+
+
 def test_short_trace_to_diagnose(capsys, files, tmp_path):
     model, _ = files
     five = trace_csv(tmp_path / "five.csv", n=5)

@@ -16,7 +16,7 @@ from ..outputs import atomic_write, check_output, same_file
 
 MIN_SAMPLES = 200     # samples of each trace (or half) the diagnosis fits or judges on
 from .argtypes import fraction, int_in
-from .mapping import add_trace_arguments, trace_from_args
+from .mapping import add_trace_arguments, single_range, trace_from_args
 
 
 def register(sub):
@@ -52,12 +52,11 @@ def register(sub):
 
 
 def _ranged(trace, text, name):
-    ranges = trace.meta.get("ranges")
-    if ranges:
-        if len(ranges) != 1 or text:
-            raise InputError("give one data range per trace: --train-range / --val-range (or a single "
-                             "--range for both)", column="--range")
-        return trace.slice(*ranges[0])
+    hint = "one data range per trace: --train-range / --val-range (or a single --range for both)"
+    if trace.meta.get("ranges"):
+        if text:
+            raise InputError(f"give {hint}", column="--range")
+        return single_range(trace, hint)
     if not text:
         return trace
     try:

@@ -148,3 +148,17 @@ def trace_from_args(path, args):
         trace.select(ranges)  # raises a clear InputError for a range outside the data
         trace.meta["ranges"] = ranges
     return trace
+
+
+def single_range(trace, hint="one --range"):
+    """``trace`` cut to its one requested ``--range`` (the whole trace without one).
+
+    For commands that take one piece of a trace (``fdid plan``, ``fdid diagnose``); several
+    ranges are refused with ``hint`` saying what to give instead.
+    """
+    ranges = trace.meta.get("ranges")
+    if not ranges:
+        return trace
+    if len(ranges) != 1:
+        raise InputError(f"give {hint}", column="--range")
+    return trace.slice(*ranges[0])

@@ -49,14 +49,8 @@ def register(sub):
 
 def _ranged_trace(path, args):
     """A trace of --limits-from / --commands, cut to --range when one is given (one range)."""
-    from .mapping import trace_from_args
-    tr = trace_from_args(path, args)
-    ranges = tr.meta.get("ranges")
-    if ranges:
-        if len(ranges) != 1:
-            raise InputError("give one --range for fdid plan's trace", source="--range")
-        tr = tr.slice(*ranges[0])
-    return tr
+    from .mapping import single_range, trace_from_args
+    return single_range(trace_from_args(path, args), "one --range for fdid plan's trace")
 
 
 def _limits(args, axes_needed):
