@@ -79,6 +79,16 @@ def test_linear_moves_limits_targets_and_seed():
     assert not np.any(moving.all(axis=1))
     # back and forth: consecutive moves of one axis alternate direction (or turn at the stroke)
     assert len({mv["axis"] for mv in tr.info["moves"]}) == 2
+    pos, last, reversals = {a: 0.0 for a in tr.axes}, {}, 0
+    for mv in tr.info["moves"]:
+        a = mv["axis"]
+        s = np.sign(mv["target"] - pos[a])
+        if a in last:
+            # the same direction again only when reversing had less than d_min of room left
+            assert s != last[a] or 30 + last[a] * pos[a] < 2, (mv, pos[a])
+            reversals += s != last[a]
+        pos[a], last[a] = mv["target"], s
+    assert reversals >= 8                                   # 10 consecutive pairs; measured 10
     same = T.linear_moves(seed=7, **kw)
     other = T.linear_moves(seed=8, **kw)
     assert all(np.array_equal(tr[a], same[a]) for a in tr.axes)
