@@ -156,8 +156,10 @@ def test_controller_setpoints_and_estimated_limits():
     traj = tj.linear_moves(n_moves=4, axes=("x",), v=100.0, acc=2000.0, jerk=1e5, Ts=TS, seed=3,
                            speed_range=(1.0, 1.0))
     lim = limits_from_trace(traj.as_trace())["x"]
-    # the zero-phase Butterworth rings a few % above the true peaks
-    assert 95.0 <= lim.v <= 102.0 and 1500.0 <= lim.a <= 2100.0 and 2e4 <= lim.j <= 1.05e5
+    # the zero-phase Butterworth rings a few % above the true peaks; every limit is reached (feed
+    # factor 1, jerk phases of a/j = 20 ms against the 50 Hz cut-off), so each is found to 10 %
+    # (measured 100.2 mm/s, 2061 mm/s^2, 1.043e5 mm/s^3; a quarter of the jerk passed before)
+    assert 95.0 <= lim.v <= 102.0 and 1800.0 <= lim.a <= 2100.0 and 9e4 <= lim.j <= 1.05e5
 
 
 def test_helix_stays_on_its_helix():
