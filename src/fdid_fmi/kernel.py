@@ -169,9 +169,14 @@ class Stepper:
         lib.fdid_state_bind(ct.byref(self.s), ct.byref(compiled.c), _dptr(self._buf))
         lib.fdid_state_defaults(ct.byref(self.s))
         na, m, p = len(compiled.layout.axes), len(compiled.model.inputs), len(compiled.model.outputs)
-        v = {name: np.ctypeslib.as_array(getattr(self.s, name), (size,)) for name, size in
-             (("cmd", na), ("ext", max(m, 1)), ("level", na), ("vtilde", na), ("on", na), ("v0", na),
-              ("y", max(p, 1)), ("u", max(m, 1)), ("vel", na))}
+        base = self._buf.ctypes.data
+        v = {}
+        for name, size in (("cmd", na), ("ext", max(m, 1)), ("level", na), ("vtilde", na), ("on", na),
+                           ("v0", na), ("y", max(p, 1)), ("u", max(m, 1)), ("vel", na)):
+            # slices of the buffer itself (not ctypes views of its address): a view handed out
+            # (outputs() returns one) keeps the buffer alive after the Stepper is gone
+            off = (ct.cast(getattr(self.s, name), ct.c_void_p).value - base) // self._buf.itemsize
+            v[name] = self._buf[off:off + size]
         self.views = v          # numpy views into the C state (writing them sets the inputs)
 
     def set_parameters(self, params, axes):
