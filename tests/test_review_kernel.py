@@ -28,3 +28,40 @@ def test_stepper_outputs_stay_valid_after_the_stepper_is_gone(siso):
     others = [np.full(nbuf, 123.0) for _ in range(8)]
     assert np.array_equal(y, expected), y
     assert all(np.all(o == 123.0) for o in others)
+
+
+@pytest.fixture(scope="module")
+def coupled():
+    return kernel.CompiledModel(fs.coupled_model())
+
+
+@pytest.mark.parametrize("shape", [(400,), (400, 1), (400, 3), (1,)])
+def test_run_refuses_commands_of_another_shape(coupled, shape):
+    # two axes: the C reads N x 2 doubles; a shorter array was read past its end
+    with pytest.raises(InputError, match="cmds.*expected \\(N, 2\\)"):
+        kernel.run(coupled, np.zeros(shape), np.zeros((400, 4)), np.zeros(2))
+
+
+def test_run_refuses_externals_and_start_velocities_of_another_shape():
+    cm = kernel.CompiledModel(fs.feature_model())          # 8 inputs, one of them external
+    c = np.zeros((300, 1))
+    for bad in (np.zeros(300), np.zeros((300, 1)), np.zeros((30, 8))):
+        with pytest.raises(InputError, match="exts"):
+            kernel.run(cm, c, bad, np.zeros(1))
+    with pytest.raises(InputError, match="v0"):
+        kernel.run(cm, c, np.zeros((300, 8)), np.zeros(2))
+    with pytest.raises(InputError, match="cmds.*real"):
+        kernel.run(cm, c + 1j, np.zeros((300, 8)), np.zeros(1))
+
+
+def test_run_takes_a_vector_for_one_axis_and_any_memory_order(siso, coupled):
+    rng = np.random.default_rng(4)
+    c = np.cumsum(rng.normal(size=300)) * 1e-3
+    a = kernel.run(siso, c, np.zeros((300, 2)), np.zeros(1))
+    b = kernel.run(siso, c[:, None], np.zeros((300, 2)), np.zeros(1))
+    assert all(np.array_equal(x, y) for x, y in zip(a, b))
+    c2 = np.cumsum(rng.normal(size=(300, 2)), axis=0) * 1e-3
+    a = kernel.run(coupled, c2, np.zeros((300, 4)), np.zeros(2))
+    for view in (np.asfortranarray(c2), c2[::-1].copy()[::-1]):
+        b = kernel.run(coupled, view, np.zeros((300, 4)), np.zeros(2))
+        assert all(np.array_equal(x, y) for x, y in zip(a, b))

@@ -105,6 +105,20 @@ def _number(value, name):
     return v
 
 
+def _real(a, name, ncols=None):
+    """``a`` as C-contiguous float64 (a copy where needed), else InputError naming ``name``: real
+    numbers only (complex ones would lose their imaginary part); a vector is one column when
+    ``ncols`` is 1."""
+    try:
+        a = np.asarray(a)
+        if a.dtype.kind == "c":
+            raise TypeError("complex numbers")
+        a = np.ascontiguousarray(a, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"expected real numbers ({exc})", column=name) from None
+    return a.reshape(-1, 1) if ncols == 1 and a.ndim == 1 else a
+
+
 def _dptr(a):
     return a.ctypes.data_as(_D)
 
@@ -235,11 +249,23 @@ def run(compiled, cmds, exts, v0, params=None):
     st = Stepper(compiled)
     axes = compiled.layout.axes
     st.set_parameters(params or {}, axes)
-    st.views["v0"][:] = v0
-    cmds = np.ascontiguousarray(cmds, dtype=float)
+    na, m, p = len(axes), len(compiled.model.inputs), len(compiled.model.outputs)
+    # the C reads N x n_axes commands and N x m externals: other shapes are refused, not read
+    # past their end (a single axis / input may come as a vector)
+    cmds = _real(cmds, "cmds", ncols=na)
     N = cmds.shape[0]
-    m, p = len(compiled.model.inputs), len(compiled.model.outputs)
-    exts = np.ascontiguousarray(exts, dtype=float) if m else np.zeros((N, 1))
+    if cmds.shape != (N, na):
+        raise InputError(f"expected (N, {na}) commanded positions, one column per axis {axes}, "
+                         f"got shape {cmds.shape}", column="cmds")
+    exts = _real(exts, "exts", ncols=m) if m else np.zeros((N, 1))
+    if m and exts.shape != (N, m):
+        raise InputError(f"expected ({N}, {m}) external input values, one row per command sample "
+                         f"and one column per model input, got shape {exts.shape}", column="exts")
+    v0 = _real(v0, "v0")
+    if v0.shape != (na,):
+        raise InputError(f"expected {na} start velocities (mm/s), one per axis {axes}, got shape "
+                         f"{v0.shape}", column="v0")
+    st.views["v0"][:] = v0
     Y, U, V = np.empty((N, max(p, 1))), np.empty((N, max(m, 1))), np.empty((N, len(axes)))
     _lib().fdid_run(ct.byref(st.s), N, _dptr(cmds), _dptr(exts), _dptr(Y), _dptr(U), _dptr(V))
     return Y[:, :p], U[:, :m], V
