@@ -65,3 +65,35 @@ def test_run_takes_a_vector_for_one_axis_and_any_memory_order(siso, coupled):
     for view in (np.asfortranarray(c2), c2[::-1].copy()[::-1]):
         b = kernel.run(coupled, view, np.zeros((300, 4)), np.zeros(2))
         assert all(np.array_equal(x, y) for x, y in zip(a, b))
+
+
+AN = np.array([1.0, -0.5, 0.2, -0.1])      # order 3
+
+
+def test_allpole_refuses_a_read_only_output():
+    rng = np.random.default_rng(6)
+    W, zi = rng.normal(size=(2, 40)), rng.normal(size=(2, 3))
+    buf = bytes(8 * 2 * 43)                  # immutable memory the C would have written
+    R = np.frombuffer(buf, dtype=float).reshape(2, 43)
+    with pytest.raises(ValueError, match="writeable"):
+        kernel.allpole(1.0, AN, W, zi, R)
+    assert buf == bytes(8 * 2 * 43)
+    R = np.zeros((2, 43))
+    R.flags.writeable = False
+    with pytest.raises(ValueError, match="writeable"):
+        kernel.allpole(1.0, AN, W, zi, R)
+    assert not R.any()
+
+
+@pytest.mark.parametrize("shift", [0, 1, 3])
+def test_allpole_in_place_gives_lfilter_of_the_input_as_it_was(shift):
+    # W a view into R (one row: contiguous, so it reached the C uncopied), shifted so that
+    # W[k + 1] is the memory of the output y[k]
+    rng = np.random.default_rng(7)
+    n, N = 3, 60
+    zi = rng.normal(size=(1, n))
+    R = rng.normal(size=(1, N + n))
+    W = R[:, n - shift:N + n - shift]
+    expected = ss.lfilter([0.5], AN, W[0].copy(), zi=zi[0])[0]
+    kernel.allpole(0.5, AN, W, zi, R)
+    assert np.array_equal(R[0, n:], expected)

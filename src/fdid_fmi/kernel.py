@@ -272,6 +272,9 @@ def run(compiled, cmds, exts, v0, params=None):
 
 
 # ------------------------------------------------------------------ the pole search's filter
+_INT_MAX = 2 ** 31 - 1      # orders and row counts reach the C as int (ctypes wraps larger ones)
+
+
 def _c(a):
     return np.ascontiguousarray(a, dtype=float)
 
@@ -279,11 +282,20 @@ def _c(a):
 def allpole(b0, an, W, zi, R):
     """``R[:, n:] = scipy.signal.lfilter([b0], an, W, zi=zi)`` (``kernel_ext/ls_filter.c``; the
     same doubles). an[0] = 1; W (m, N); zi (m, n); R (m, N + n), C-contiguous, written in place."""
+    an, W, zi = _c(an), _real(W, "W"), _c(zi).copy()
     n = an.size - 1
-    an, W, zi = _c(an), _c(W), _c(zi).copy()
-    if not (n >= 1 and R.flags.c_contiguous and R.dtype == float
+    if not (isinstance(R, np.ndarray) and R.dtype == float and R.flags.c_contiguous
+            and R.flags.writeable):
+        raise ValueError("allpole: R must be a writeable C-contiguous float64 array (written in place)")
+    if not (1 <= n <= _INT_MAX and W.ndim == 2 and W.shape[0] <= _INT_MAX
             and R.shape == (W.shape[0], W.shape[1] + n) and zi.shape == (W.shape[0], n)):
         raise ValueError("allpole: order n >= 1, R C-contiguous floats (m, N + n) and zi (m, n)")
+    # the C reads W and an while it writes R (restrict pointers): a W or an in R's memory (an
+    # in-place call) would be read after it was overwritten, so it is copied first
+    if np.may_share_memory(W, R):
+        W = W.copy()
+    if np.may_share_memory(an, R):
+        an = an.copy()
     _lib().fdid_allpole(n, float(b0), an.ctypes.data, W.shape[0], W.shape[1], W.ctypes.data,
                         zi.ctypes.data, R.ctypes.data)
 
