@@ -102,14 +102,36 @@ def recipe_from_model(model: DriveModel, reserved=()) -> Recipe:
     added to this block must not take (the combined model needs unique names).
     """
     ident = model.identification or {}
+    if not isinstance(ident, dict):
+        raise InputError(f"the model's identification record is a {type(ident).__name__}, not a table; "
+                         "identify the model again", column="identification")
     if not ident.get("structure"):
         what = ("a combined per-axis model: diagnose its blocks (diagnose() splits it)"
                 if ident.get("blocks") else f"method '{model.method or 'unknown'}'")
         raise InputError(f"diagnosis refits the model with the pole search and needs a pole-search or "
                          f"MIMO model (fdid identify --method pole-search or mimo); this model's "
                          f"identification has no 'structure' ({what})", column="identification")
-    rec = PoleSearchRecord.from_dict(ident)
+    try:
+        rec = PoleSearchRecord.from_dict(ident)
+    except InputError:
+        raise
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:    # a damaged or hand-edited record
+        raise InputError(f"the model's identification record is damaged ({type(exc).__name__}: {exc}); "
+                         "identify the model again", column="identification") from None
     st = rec.structure
+    hz = list(rec.all_real_hz) + [w for w, _ in rec.all_complex]
+    zeta = [z for _, z in rec.all_complex]
+    if not all(np.isfinite(f) and f > 0 for f in hz) or not all(np.isfinite(z) and z > 0 for z in zeta):
+        raise InputError(f"the model's identification record has a pole that is not a positive finite "
+                         f"frequency / damping (real_hz {list(rec.all_real_hz)}, complex_hz_zeta "
+                         f"{[list(c) for c in rec.all_complex]}); identify the model again",
+                         column="identification")
+    n_rec = len(rec.all_real_hz) + 2 * len(rec.all_complex)
+    if model.poles is not None and len(model.poles) and n_rec != len(model.poles):
+        raise InputError(f"the model's identification record lists {n_rec} poles (real_hz, "
+                         f"complex_hz_zeta and the locked ones) but the model has {len(model.poles)}; "
+                         "the record does not describe this model: identify it again",
+                         column="identification")
     n = len(rec.all_real_hz) + 2 * len(rec.all_complex)
     vt = dict(rec.v_tilde_mm_s)
     for a in [s.axis for s in st.inputs if s.kind == "friction"]:
