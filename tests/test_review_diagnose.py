@@ -39,6 +39,47 @@ def small():
     return identify_siso(tr, maxiter=5, friction=False), tr, _ramp_trace(seed=1, source="ramp_val")
 
 
+# ------------------------------------------------------------------ what diagnose() accepts
+def test_diagnose_refuses_a_quasi_static_model_with_one_line(small):
+    _, tr, va = small
+    qs = identify_quasi_static(tr, ["x"])
+    with pytest.raises(InputError, match="pole-search or MIMO model.*not a QuasiStaticModel"):
+        diagnose(qs, tr, va)
+
+
+def test_diagnose_refuses_a_command_that_never_moves(small):
+    model, tr, va = small
+    still = Trace.from_arrays(tr.t, {"x": {"cmd": np.full(tr.n, 5.0), "act": np.full(tr.n, 5.0)}},
+                              source="still.csv")
+    # before: every detector saw nothing, and on a still held-out trace rounding noise (1e-9 µm)
+    # decided what was kept
+    with pytest.raises(InputError, match=r"still.csv, column 'x.cmd'.*never moves in the held-out trace"):
+        diagnose(model, tr, still, maxiter=2, max_steps=1)
+    with pytest.raises(InputError, match=r"never moves in the training trace"):
+        diagnose(model, still, va, maxiter=2, max_steps=1)
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(min_gain=float("nan")), "min_gain must be a fraction"),      # never kept anything, silently
+    (dict(max_loss=-0.1), "max_loss must be a fraction"),
+    (dict(max_steps=0), "max_steps must be an integer >= 1"),           # no round, "nothing found"
+    (dict(maxiter=0), "maxiter must be an integer >= 1"),
+    (dict(max_delay=1), "max_delay must be an integer >= 2"),           # no dead time could be named
+    (dict(max_delay=-1), "max_delay must be an integer >= 2"),          # numpy's argmin of nothing
+    (dict(detectors=[]), "no detector given"),                          # ran every detector
+])
+def test_diagnose_checks_its_options(small, kw, match):
+    model, tr, va = small
+    with pytest.raises(InputError, match=match):
+        diagnose(model, tr, va, **kw)
+
+
+def test_a_single_channel_name_to_exclude_is_one_name_not_its_letters(small):
+    from fdid_fmi.diagnose.loop import _options
+    *_, dets, exclude = _options(0.05, 0.01, 1, 2, 6, "friction", "pulses_N")
+    assert dets == ["friction"] and exclude == ["pulses_N"]
+
+
 # ------------------------------------------------------------------ damaged model records
 def _with_identification(model, change):
     d = copy.deepcopy(model.to_dict())

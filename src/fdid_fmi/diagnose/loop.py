@@ -319,6 +319,38 @@ def _combined(model, blocks, train, val, split, kw, say, t0):
     return diag
 
 
+def _options(min_gain, max_loss, max_steps, maxiter, max_delay, detectors, exclude):
+    """The options of :func:`diagnose`, checked (InputError naming the option otherwise)."""
+    def frac(v, name):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
+                or not 0 <= float(v) < 1:
+            raise InputError(f"{name} must be a fraction in [0, 1), got {v!r}", column=name)
+        return float(v)
+
+    def count(v, name, lo):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+            raise InputError(f"{name} must be an integer >= {lo}, got {v!r}", column=name)
+        return int(v)
+
+    def names(v, name):
+        if v is None:
+            return None
+        v = [v] if isinstance(v, str) else list(v)
+        if not all(isinstance(x, str) for x in v):
+            raise InputError(f"{name} must be names (strings), got {v!r}", column=name)
+        return v
+
+    detectors = names(detectors, "detectors")
+    if detectors is not None and not detectors:
+        raise InputError(f"no detector given; choose from {sorted(DETECTORS)} (or leave detectors out "
+                         "for all)", column="detectors")
+    # a best shift equal to max_delay is never named (delay.shift_statistic): below 2 no dead
+    # time could be named at all
+    return (frac(min_gain, "min_gain"), frac(max_loss, "max_loss"), count(max_steps, "max_steps", 1),
+            count(maxiter, "maxiter", 1), count(max_delay, "max_delay", 2), detectors,
+            names(exclude, "exclude") or [])
+
+
 def _order_check(recipe, vel_train, train, val, maxiter):
     """Residual tables of the refit with one more real pole, or {"error": why} when it cannot be
     fitted."""
@@ -363,15 +395,27 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     """
     t0 = time.perf_counter()
     say = progress or (lambda msg: None)
+    if not isinstance(model, DriveModel):
+        raise InputError("diagnosis refits the model with the pole search and needs a pole-search or MIMO "
+                         f"model (fdid identify --method pole-search or mimo), not a {type(model).__name__}",
+                         column="identification")
+    min_gain, max_loss, max_steps, maxiter, max_delay, detectors, exclude = _options(
+        min_gain, max_loss, max_steps, maxiter, max_delay, detectors, exclude)
     split = ""
     if val is None:
         train, val = split_halves(train)
         split = "no held-out trace given: first half fitted, second half held out"
-    for tr in (train, val):
+    for tr, what in ((train, "training"), (val, "held-out")):
         if abs(tr.Ts - model.Ts) > 1e-3 * model.Ts:
             raise InputError(f"trace sampled at {tr.Ts:g} s, model at {model.Ts:g} s", source=tr.source,
                              column="Ts")
-    names = list(detectors or DETECTORS)
+        for a in model.axes:
+            if tr.has(a, "cmd") and not np.ptp(np.asarray(tr.cmd(a), float)) > 0:
+                # nothing to fit or judge: every detector would see no motion, and a residual of
+                # rounding noise would decide what is kept
+                raise InputError(f"the commanded position of axis '{a}' never moves in the {what} trace; "
+                                 "diagnosis needs moves", source=tr.source, column=f"{a}.cmd")
+    names = list(detectors if detectors is not None else DETECTORS)
     for nm in names:
         if nm not in DETECTORS:
             raise InputError(f"unknown detector '{nm}'; choose from {sorted(DETECTORS)}", column="detectors")
