@@ -213,13 +213,13 @@ class LSProblem:
 
         ``overrides``: per segment, {input index: values} replacing computed input rows.
         """
-        if not np.all(np.isfinite(a)):
-            return Fit(J=1e6, a=np.asarray(a), b={}, rms=np.full(self.p, np.inf), feasible=False,
+        unusable = Fit(J=1e6, a=np.asarray(a), b={}, rms=np.full(self.p, np.inf), feasible=False,
                        v_tilde=dict(v_tilde))
+        if not np.all(np.isfinite(a)):
+            return (unusable, None) if want_residuals else unusable
         Mt = self.design(a, v_tilde, overrides)
         if not np.all(np.isfinite(Mt)):    # a pole set the Tustin filter cannot represent
-            return Fit(J=1e6, a=np.asarray(a), b={}, rms=np.full(self.p, np.inf), feasible=False,
-                       v_tilde=dict(v_tilde))
+            return (unusable, None) if want_residuals else unusable
         Z = self.Z
         r = np.abs(Mt).max(axis=1)
         r[r == 0] = 1.0

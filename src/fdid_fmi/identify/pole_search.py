@@ -77,14 +77,16 @@ class _Params:
         if self.nr >= 1 and self.nc >= 1:
             w, z = cplx[0]
             if z > 1:
-                r1, r2 = w * (z - np.sqrt(z * z - 1)), w * (z + np.sqrt(z * z - 1))
-                trio = sorted([real[-1], r1, r2])
-                if trio[2] != real[-1]:
-                    nw = np.sqrt(trio[0] * trio[1])
-                    cand = self.encode(real[:-1] + [trio[2]],
-                                       [(nw, (trio[0] + trio[1]) / (2 * nw))] + cplx[1:], vt)
-                    if np.all(cand >= self.lo - 1e-12) and np.all(cand <= self.hi + 1e-12):
-                        return cand
+                # a huge zeta rounds the slow root to 0 (log10 -inf): that mirror is out of bounds
+                with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+                    r1, r2 = w * (z - np.sqrt(z * z - 1)), w * (z + np.sqrt(z * z - 1))
+                    trio = sorted([real[-1], r1, r2])
+                    if trio[2] != real[-1]:
+                        nw = np.sqrt(trio[0] * trio[1])
+                        cand = self.encode(real[:-1] + [trio[2]],
+                                           [(nw, (trio[0] + trio[1]) / (2 * nw))] + cplx[1:], vt)
+                        if np.all(cand >= self.lo - 1e-12) and np.all(cand <= self.hi + 1e-12):
+                            return cand
         return xc
 
     def polynomial(self, real, cplx):
@@ -169,6 +171,11 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
     do_refine = refine and fric_axes and not any(o.integrators for o in structure.outputs)
     finished = [_finish(prob, structure, par, f, par.canonical(x), do_refine) for f, x in cands]
     if finished[0] is None:
+        real, cplx, vt = par.decode(par.canonical(cands[0][1]))
+        if not np.all(np.isfinite(prob.project(par.polynomial(real, cplx), vt).rms)):
+            raise InputError("no usable model in the search space: the best candidate's filters are not "
+                             "finite numbers (poles, damping or v_tilde far out of range, e.g. a zeta "
+                             "bound of 1e308); narrow the bounds", source=traces[0].source, column="bounds")
         raise InputError("no feasible model in the search space (every candidate had a friction gain "
                          "of the wrong sign); widen the bounds or check the friction structure",
                          source=traces[0].source, column="bounds")

@@ -62,11 +62,12 @@ def characteristic_polynomial(real_hz, complex_hz_zeta):
     a : ndarray, [1, a_1, ..., a_n]
     """
     a = np.array([1.0])
-    for p in real_hz:
-        a = np.convolve(a, [1.0, 2 * np.pi * p])
-    for w, z in complex_hz_zeta:
-        wn = 2 * np.pi * w
-        a = np.convolve(a, [1.0, 2 * z * wn, wn * wn])
+    with np.errstate(over="ignore", invalid="ignore"):   # absurd bounds: non-finite a, refused by lsfit
+        for p in real_hz:
+            a = np.convolve(a, [1.0, 2 * np.pi * p])
+        for w, z in complex_hz_zeta:
+            wn = 2 * np.pi * w
+            a = np.convolve(a, [1.0, 2 * z * wn, wn * wn])
     return a
 
 
