@@ -60,9 +60,13 @@ def test_demo_end_to_end(tmp_path):
     r = fdid("demo", "--out", tmp_path / "demo")
     assert r.returncode == 0, r.stderr[-2000:]
     out = tmp_path / "demo"
-    for f in ("model.json", "drive.fmu", "report.html", "report.json", "summary.json"):
+    for f in ("model.json", "drive.fmu", "report.html", "report.json", "summary.json", "plan.html"):
         assert (out / f).is_file(), f
     s = json.loads((out / "summary.json").read_text())
+    # both held-out traces, both axes (README's table); the loops below then check every one
+    assert sorted(s["validation"]) == ["circle", "diamond"]
+    assert sorted((r["trace"], r["axis"]) for r in s["table"]) == [(t, a) for t in ("circle", "diamond")
+                                                                   for a in "xy"]
     for name, v in s["validation"].items():
         assert v["problems"] == [] and v["max_abs_diff_reference_mm"] <= 1e-9, name
     for row in s["table"]:
