@@ -85,3 +85,46 @@ def test_huge_zeta_bound_warns_nothing(trace):
         b = Bounds([(0.1, 450.0)], [(0.5, 450.0)], [(0.1, 1e10)])
         m = idf.identify_siso(trace, bounds=b, maxiter=3, same_sample="hold", refine=False)
     assert np.all(np.isfinite(m.A)) and np.all(np.isfinite(m.C))
+
+
+# ----------------------------------------------------------------------------- data ranges
+def with_channel(tr, name, data):
+    """``tr`` with one channel replaced after it was built (what a user of the library can do)."""
+    out = Trace(t=tr.t, channels=dict(tr.channels), roles={a: dict(r) for a, r in tr.roles.items()},
+                source=tr.source)
+    out.channels[name] = Channel(name, tr.channels[name].unit, data)
+    return out
+
+
+IDENTIFIERS = {
+    "quasi-static": lambda tr: idf.identify_quasi_static(tr),
+    "full-ls": lambda tr: idf.identify_full_ls(tr, "x"),
+    "pole-search": lambda tr: idf.identify_siso(tr, "x", maxiter=2, same_sample="hold", refine=False),
+    "auto": lambda tr: idf.identify_auto(tr, "x", same_sample="hold", maxiter=2, workers=1),
+}
+
+
+@pytest.mark.parametrize("method", sorted(IDENTIFIERS))
+@pytest.mark.parametrize("role,value", [("act", np.nan), ("cmd", np.inf)])
+def test_nan_put_into_a_channel_after_reading_is_named(trace, method, role, value):
+    # quasi-static returned NaN gains as a model, Full LS raised numpy's LinAlgError, the pole
+    # search said the tracking error was constant
+    data = np.array(trace.get("x", role))
+    data[700] = value
+    bad = with_channel(trace, f"x_{role}", data)
+    with pytest.raises(InputError, match=rf"column 'x_{role}', row 701: contains NaN or inf"):
+        IDENTIFIERS[method](bad)
+
+
+@pytest.mark.parametrize("method", ["quasi-static", "full-ls", "pole-search"])
+def test_ranges_with_different_sample_times_are_refused(trace, method):
+    # quasi-static and Full LS took the first range's Ts for all: K_vel 0.0083 s instead of 0.0123 s
+    half = Trace.from_arrays(trace.t[::2], {"x": {"cmd": trace.cmd("x")[::2], "act": trace.act("x")[::2]}})
+    with pytest.raises(InputError, match="different sample times"):
+        IDENTIFIERS[method]([trace, half])
+
+
+@pytest.mark.parametrize("method", ["quasi-static", "full-ls", "pole-search"])
+def test_no_range_is_one_error_not_an_index_error(method):
+    with pytest.raises(InputError, match="no data range given"):
+        IDENTIFIERS[method]([])

@@ -48,6 +48,7 @@ from scipy.linalg import LinAlgWarning
 from ..errors import InputError
 from ..metrics import rms
 from .pole_search import identify_mimo
+from .ranges import training_ranges
 from .record import PoleSearchRecord
 from .regressors import CHOSEN_FROM
 from .structure import Bounds, default_bounds, mimo_structure, siso_structure
@@ -282,7 +283,7 @@ def identify_auto(traces, axis="x", same_sample=None, v_tilde=None, method="de",
     (:meth:`StructureChoice.to_dict`).
     """
     t0 = time.perf_counter()
-    traces = [traces] if not isinstance(traces, (list, tuple)) else list(traces)
+    traces = training_ranges(traces, [axis])     # one line, not the same one from every candidate
     workers = max(1, int(workers or os.cpu_count() or 1))
     results, probes = fit_structures(traces, axis, same_sample, v_tilde, method, seed, maxiter, velocity,
                                      ma_order, workers)

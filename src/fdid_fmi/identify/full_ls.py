@@ -24,6 +24,7 @@ from ..errors import InputError
 from ..signals import butter_filtfilt, derivative
 from .lsfit import Fit
 from .pole_search import assemble
+from .ranges import training_ranges
 from .structure import InputSpec, OutputSpec, Structure
 
 
@@ -113,7 +114,7 @@ def identify_full_ls(traces, axis="x", cutoff_hz=None, order=2, v_tilde=None, p_
     InputError if the unconstrained LS gives an unstable closed loop (lack of excitation).
     """
     from .quasi_static import default_cutoff
-    traces = [traces] if not isinstance(traces, (list, tuple)) else list(traces)
+    traces = training_ranges(traces, [axis], roles=("cmd", "act"))
     Ts = traces[0].Ts
     cutoff_hz = cutoff_hz or default_cutoff(Ts)
     rows, ys, vmax = [], [], 0.0

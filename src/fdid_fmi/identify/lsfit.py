@@ -19,6 +19,7 @@ from .. import kernel
 from ..errors import InputError
 from ..signals import measured_velocity
 from . import regressors as rg
+from .ranges import training_ranges
 from .structure import OUTPUT_SOURCES, Structure
 
 
@@ -63,12 +64,10 @@ class LSProblem:
     def __init__(self, traces, structure: Structure):
         structure.check()
         self.s = structure
+        traces = training_ranges(traces, structure.axes,
+                                 [ins.channel for ins in structure.inputs if ins.kind == "external"])
         self.traces = traces
         self.Ts = traces[0].Ts
-        for tr in traces:
-            if abs(tr.Ts - self.Ts) > 1e-6 * self.Ts:
-                raise InputError(f"data ranges have different sample times ({self.Ts} s, {tr.Ts} s)",
-                                 source=tr.source, column="time")
         self.n = structure.order
         self.late = np.array([ins.late for ins in structure.inputs], bool)
         if structure.same_sample is None:

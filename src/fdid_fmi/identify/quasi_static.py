@@ -15,6 +15,7 @@ from ..errors import InputError
 from ..metrics import rms
 from ..model import QuasiStaticModel
 from ..signals import filtered_derivatives
+from .ranges import training_ranges
 
 
 def default_cutoff(Ts):
@@ -40,11 +41,12 @@ def identify_quasi_static(traces, axes=None, cutoff_hz=None, order=2, terms=3):
     -------
     QuasiStaticModel
     """
-    traces = [traces] if not isinstance(traces, (list, tuple)) else list(traces)
+    traces = training_ranges(traces)
     Ts = traces[0].Ts
     axes = axes or [a for a in traces[0].axes if traces[0].has(a, "cmd") and traces[0].has(a, "act")]
     if not axes:
         raise InputError("no axis with both commanded and measured position", source=traces[0].source)
+    training_ranges(traces, axes, roles=("cmd", "act"))
     cutoff_hz = cutoff_hz or default_cutoff(Ts)
     gains, metrics = {}, {}
     for ax in axes:
