@@ -17,6 +17,14 @@ the junction velocity v_s to a peak and falls to v_e through jerk-limited symmet
   <= min(a / 2, j R / (9 V)), tangential jerk <= j / 3 (axis acceleration <= a_t + v^2/R,
   axis jerk <= j_t + 3 v a_t / R + v^3 / R^2).
 
+These caps do not count the tangential jerk a block still has at a junction (up to the axis
+limit) on top of the kink and curvature-jump terms, nor that an arc's tangent peaks are measured
+on chords. So the sampled commands are then measured (n-th finite differences, n = 1, 2, 3) and,
+where an axis exceeds its v, a or j limit, the junction velocity there is lowered (down to an
+exact stop) or, away from a junction, the block is slowed uniformly, until every sample is
+within every limit (as :mod:`fdid_fmi.plan.interpolate` promises). A kinked junction (theta > 0)
+then mostly ends in an exact stop; tangent junctions keep most of their velocity.
+
 The timeline is continuous and sampled at k Ts (block ends need not fall on samples).
 """
 from __future__ import annotations
@@ -151,6 +159,88 @@ def _ends(b):
     return t0, t1, k0, k1
 
 
+_MAX_REPAIRS = 200
+
+
+def _passes(caps, lim, blocks):
+    """Junction velocities: the caps, lowered by what each block's length allows (a backward and
+    a forward pass, as a look-ahead does)."""
+    vj = np.array(caps, float)
+    n = len(blocks)
+    for k in range(n - 1, 0, -1):
+        if lim[k] is not None:
+            V, A, J = lim[k]
+            vj[k - 1] = min(vj[k - 1], _reach(vj[k], blocks[k].length, A, J, vj[k - 1]))
+    v_in = 0.0
+    for k in range(n):
+        if lim[k] is not None:
+            V, A, J = lim[k]
+            vj[k] = min(vj[k], _reach(v_in, blocks[k].length, A, J, vj[k]))
+            v_in = vj[k]
+        else:
+            vj[k] = 0.0
+            v_in = 0.0
+    return vj
+
+
+def _timeline(blocks, lim, vj, Ts, lead_in, settle):
+    """Sampled positions of the continuous timeline: (t, P, owner, spans, items)."""
+    t0 = lead_in
+    items = []
+    v_in = 0.0
+    for k, b in enumerate(blocks):
+        if b.kind == "dwell":
+            items.append((t0, b.block_time, None, b))
+            t0 += b.block_time
+            v_in = 0.0
+            continue
+        if lim[k] is None:
+            items.append((t0, 0.0, None, b))
+            continue
+        V, A, J = lim[k]
+        prof = _Profile(b.length, v_in, vj[k], V, A, J)
+        items.append((t0, prof.duration, prof, b))
+        t0 += prof.duration
+        v_in = vj[k]
+    t_end = t0
+    N = int(math.floor((t_end + settle) / Ts)) + 1
+    t = np.arange(N) * Ts
+    P = np.repeat(blocks[0].start[None, :], N, axis=0)
+    owner = np.full(N, -1, int)
+    spans = []
+    for ts, dur, prof, b in items:
+        k0 = int(math.floor(ts / Ts + 1e-9))
+        k1 = int(math.floor((ts + dur) / Ts + 1e-9))
+        sel = slice(k0 + 1, k1 + 1)
+        if prof is not None and k1 > k0:
+            P[sel] = b.point(prof.s(t[sel] - ts))
+        elif k1 > k0:
+            P[sel] = b.end
+        owner[sel] = b.index
+        spans.append((k0, k1))
+    owner[spans[-1][1] + 1:] = blocks[-1].index
+    P[spans[-1][1] + 1:] = blocks[-1].end
+    return t, P, owner, spans, items
+
+
+def _over_limits(P, limits, Ts):
+    """Where the sampled commands exceed an axis limit: (order n, first sample m, |d|/limit) of
+    every n-th finite difference (n = 1, 2, 3: v, a, j) above its limit by more than the
+    rounding of an n-th difference of these positions."""
+    out = []
+    scale = float(np.abs(P).max()) if P.size else 0.0
+    for i, ax in enumerate(AXES):
+        lim = limits.get(ax)
+        if lim is None:
+            continue
+        for order, bound in ((1, lim.v), (2, lim.a), (3, lim.j)):
+            d = np.abs(np.diff(P[:, i], n=order)) / Ts ** order
+            rounding = 2 ** order * np.finfo(float).eps * scale / Ts ** order
+            for m in np.flatnonzero(d > bound + rounding):
+                out.append((order, int(m), float(d[m] / bound)))
+    return out
+
+
 def interpolate_lookahead(program, limits, Ts, corner_angle_deg, overrides=None, lead_in=0.05, settle=0.5):
     """Commanded positions with no stop at junctions within ``corner_angle_deg`` (module docstring).
 
@@ -188,56 +278,40 @@ def interpolate_lookahead(program, limits, Ts, corner_angle_deg, overrides=None,
         if dk > 1e-12:
             cap = min(cap, math.sqrt(0.5 * jmin * Ts / dk), math.sqrt(0.5 * amin / dk))
         vj[k] = cap
-    # backward and forward passes: what each block's length allows
-    for k in range(n - 1, 0, -1):
-        if lim[k] is not None:
+    # build, then measure: where the sampled axis v/a/j exceed a limit (the tangential jerk of
+    # the blocks adds to a junction's kink or curvature-jump terms; an arc's tangent peaks are
+    # measured on chords), lower that junction's velocity (to an exact stop at worst) or, away
+    # from a junction, slow the block down uniformly; repeat until every limit holds
+    caps = vj.copy()
+    caps0 = vj.copy()
+    for _ in range(_MAX_REPAIRS):
+        vj = _passes(caps, lim, blocks)
+        t, P, owner, spans, items = _timeline(blocks, lim, vj, Ts, lead_in, settle)
+        over = _over_limits(P, limits, Ts)
+        if not over:
+            break
+        ends = np.array([ts + dur for ts, dur, _, _ in items[:-1]])    # junction times, sorted
+        junctions, slow = {}, {}
+        for order, m, ratio in over:
+            k_lo, k_hi = np.searchsorted(ends, [(m - 1) * Ts, (m + order + 1) * Ts], side="left")
+            near = [k for k in range(k_lo, min(k_hi + 1, n - 1)) if caps[k] > 0
+                    and (m - 1) * Ts <= ends[k] <= (m + order + 1) * Ts]
+            if near:
+                for k in near:
+                    junctions[k] = max(junctions.get(k, 0.0), ratio)
+                continue
+            for k in set(owner[m:m + order + 1].tolist()) - {-1}:
+                if lim[k] is not None:
+                    slow[k] = min(slow.get(k, 1.0), 0.999 * ratio ** (-1.0 / order))
+        for k, ratio in junctions.items():
+            caps[k] = (0.8 if ratio < 1.1 else 0.5) * caps[k] if caps[k] > 0.02 * caps0[k] else 0.0
+        for k, f in slow.items():
             V, A, J = lim[k]
-            vj[k - 1] = min(vj[k - 1], _reach(vj[k], blocks[k].length, A, J, vj[k - 1]))
-    v_in = 0.0
-    for k in range(n):
-        if lim[k] is not None:
-            V, A, J = lim[k]
-            vj[k] = min(vj[k], _reach(v_in, blocks[k].length, A, J, vj[k]))
-            v_in = vj[k]
-        else:
-            vj[k] = 0.0
-            v_in = 0.0
-    # continuous timeline
-    t0 = lead_in
-    items = []
-    v_in = 0.0
-    for k, b in enumerate(blocks):
-        if b.kind == "dwell":
-            items.append((t0, b.block_time, None, b))
-            t0 += b.block_time
-            v_in = 0.0
-            continue
-        if lim[k] is None:
-            items.append((t0, 0.0, None, b))
-            continue
-        V, A, J = lim[k]
-        prof = _Profile(b.length, v_in, vj[k], V, A, J)
-        items.append((t0, prof.duration, prof, b))
-        t0 += prof.duration
-        v_in = vj[k]
-    t_end = t0
-    N = int(math.floor((t_end + settle) / Ts)) + 1
-    t = np.arange(N) * Ts
-    P = np.repeat(blocks[0].start[None, :], N, axis=0)
-    owner = np.full(N, -1, int)
-    spans = []
-    for ts, dur, prof, b in items:
-        k0 = int(math.floor(ts / Ts + 1e-9))
-        k1 = int(math.floor((ts + dur) / Ts + 1e-9))
-        sel = slice(k0 + 1, k1 + 1)
-        if prof is not None and k1 > k0:
-            P[sel] = b.point(prof.s(t[sel] - ts))
-        elif k1 > k0:
-            P[sel] = b.end
-        owner[sel] = b.index
-        spans.append((k0, k1))
-    owner[spans[-1][1] + 1:] = blocks[-1].index
-    P[spans[-1][1] + 1:] = blocks[-1].end
+            lim[k] = (V * f, A * f * f, J * f ** 3)
+    else:
+        raise InputError("the look-ahead interpolation cannot keep the axis limits; interpolate "
+                         "with an exact stop at every block end (no corner angle)", column="--corner-angle")
+    N = P.shape[0]
     path_s = np.zeros(N)
     s0 = 0.0
     for b, (k0, k1) in zip(blocks, spans):
