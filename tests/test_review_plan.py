@@ -79,3 +79,95 @@ def test_lookahead_still_carries_velocity_through_diagonal_tangents():
         k1 = ip.spans[k][1]
         v = np.linalg.norm(np.diff(P[k1 - 1:k1 + 2], axis=0), axis=1) / Ts
         assert v.min() > 0.5 * vj[k]
+
+
+# ----------------------------------------------------------------- contour error, closed form
+TS_C = 1e-3
+LIM_C = {a: AxisLimits(200.0, 5000.0, 2e5) for a in "xyz"}
+
+
+def _two_axis_model(A1, B1, C1, axes, method):
+    """The same single-axis discrete state space (A1, B1, C1) on each of two axes."""
+    n = A1.shape[0]
+    A = np.zeros((2 * n, 2 * n))
+    B = np.zeros((2 * n, 2))
+    C = np.zeros((2, 2 * n))
+    for m in range(2):
+        A[m * n:(m + 1) * n, m * n:(m + 1) * n] = A1
+        B[m * n:(m + 1) * n, m] = B1
+        C[m, m * n:(m + 1) * n] = C1
+    return DriveModel(TS_C, A, B, C, np.zeros((2, 2)), [Port(f"{a}_cmd", "mm", "command", a) for a in axes],
+                      [Port(f"{a}_pos", "mm", "position", a) for a in axes], method=method)
+
+
+def _lag(p, axes=("x", "y")):
+    """x[k+1] = p x[k] + (1 - p) r[k]: a proportional position loop sampled at Ts."""
+    return _two_axis_model(np.array([[p]]), np.array([1.0 - p]), np.array([1.0]), axes, "lag")
+
+
+def _delay(d, axes=("x", "y")):
+    """x[k] = r[k - d]: a shift register of d states."""
+    A1 = np.diag(np.ones(d - 1), -1)
+    B1 = np.zeros(d)
+    B1[0] = 1.0
+    C1 = np.zeros(d)
+    C1[-1] = 1.0
+    return _two_axis_model(A1, B1, C1, axes, "delay")
+
+
+def _circle(plane, g, R=10.0, F=3000):
+    """A full circle of radius R about the origin of the plane, started at +R on its first axis."""
+    first, second, centre = {"G17": ("X", "Y", "I"), "G18": ("Z", "X", "K"), "G19": ("Y", "Z", "J")}[plane]
+    return parse_program(f"{plane} G0 {first}{R}\n{g} {first}{R} {second}0 {centre}{-R} F{F}")
+
+
+def _cruise(ip, plane, R):
+    """Samples of the circle block at constant angular step, and that step's rate w (rad/s)."""
+    i, j = {"G17": ("x", "y"), "G18": ("z", "x"), "G19": ("y", "z")}[plane]
+    ang = np.unwrap(np.arctan2(ip.positions[j], ip.positions[i]))
+    w = np.diff(ang) / TS_C
+    wm = np.abs(w).max()
+    k = np.flatnonzero(np.abs(np.abs(w) - wm) < 1e-9 * wm)
+    assert k.size > 1000 and np.all(np.diff(k) == 1)          # one stretch at constant speed
+    return k, wm
+
+
+@pytest.mark.parametrize("plane, axes", [("G17", ("x", "y")), ("G17", ("y", "x")), ("G18", ("x", "z")),
+                                         ("G18", ("z", "x")), ("G19", ("z", "y"))])
+@pytest.mark.parametrize("g", ["G3", "G2"])
+def test_contour_error_of_a_lagging_drive_on_a_circle(plane, axes, g):
+    """Each axis x[k+1] = p x[k] + (1 - p) r[k]. On a circle r[k] = R e^{i w k Ts} the steady
+    response is x[k] = H r[k], H = (1 - p) / (e^{i w Ts} - p): a circle of radius R |H| about the
+    same centre. Its shortest distance to the commanded polyline (chords of the circle) is
+    R (1 - |H|) less between 0 and the chord sag R (1 - cos(w Ts / 2)); inside the circle, so
+    positive on a G3 (counter-clockwise) arc and negative on a G2 one, whatever the order in
+    which the model lists its axes."""
+    R, Kv = 10.0, 30.0
+    p = math.exp(-Kv * TS_C)
+    ip = interpolate(_circle(plane, g, R), LIM_C, TS_C)
+    k, w = _cruise(ip, plane, R)
+    assert w * R == pytest.approx(50.0, rel=0.01)             # F 3000 mm/min (time-scaled <= 1 %)
+    steady = k[k > k[0] + int(20 / Kv / TS_C)]                # transient e^-20 of the entry error
+    pr = predict(ip, model=_lag(p, axes))
+    H = abs((1 - p) / (np.exp(1j * w * TS_C) - p))
+    sag = R * (1 - math.cos(w * TS_C / 2))
+    expected = R * (1 - H)                                    # 0.1339 mm
+    c = pr.contour[steady] * (1 if g == "G3" else -1)
+    assert c.max() <= expected + 1e-9
+    assert c.min() >= expected - sag - 1e-9
+
+
+@pytest.mark.parametrize("d", [5, 20])
+def test_contour_error_of_a_pure_delay_is_zero(d):
+    """x[k] = r[k - d] puts the tool on a commanded sample: no contour error, while the tracking
+    error is the chord over d samples, 2 R sin(w d Ts / 2). (The normal component of that chord
+    at the commanded point, R (1 - cos(w d Ts)), is not the contour error: the tool is on the
+    path.)"""
+    R = 10.0
+    ip = interpolate(_circle("G17", "G3", R), LIM_C, TS_C)
+    k, w = _cruise(ip, "G17", R)
+    steady = k[k > k[0] + d]
+    pr = predict(ip, model=_delay(d))
+    assert np.abs(pr.contour[steady]).max() < 1e-12
+    track = np.hypot(pr.error["x"][steady], pr.error["y"][steady])
+    np.testing.assert_allclose(track, 2 * R * math.sin(w * d * TS_C / 2), rtol=1e-9)

@@ -7,9 +7,10 @@ t_k + h, input k held; the tracking error is formed here as e = x_cmd - x at the
 
 Contour error (as :func:`fdid_fmi.metrics.contour_error`: the shortest distance from the
 predicted point to the commanded path, here the polyline of the commanded samples, which lies
-on the programmed geometry to < 0.1 um), **signed** in the plane of the model's two axes:
-positive when the tool is left of the direction of travel (inside a counter-clockwise arc,
-outside a clockwise one), negative when right.
+on the programmed geometry to < 0.1 um), **signed** in the plane of the model's two axes, taken
+in right-handed order ((x, y), (y, z) or (z, x): :func:`contour_axes`): positive when the tool is
+left of the direction of travel seen from the plane's positive normal (inside a counter-clockwise
+G3 arc, outside a clockwise G2 one), negative when right.
 """
 from __future__ import annotations
 
@@ -100,6 +101,18 @@ def signed_contour_error(cmd, act, window=400, feet=False, k_nearest=12):
         ln = np.sqrt(np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300))
         nrm = np.column_stack([-ab[:, 1], ab[:, 0]]) / ln[:, None]
     return (out, foot, nrm) if feet else out
+
+
+def contour_axes(axes):
+    """The axes the contour error is measured in: a model of two axes gives them in right-handed
+    order, (x, y), (y, z) or (z, x) as in G17 / G19 / G18, whatever the model's order, so that
+    the sign means the same for every model (positive inside a G3 arc); other models: all axes
+    (unsigned)."""
+    axes = list(axes)
+    if len(axes) == 2 and all(a in ("x", "y", "z") for a in axes):
+        i, j = ("x", "y", "z").index(axes[0]), ("x", "y", "z").index(axes[1])
+        return axes if (j - i) % 3 == 1 else axes[::-1]
+    return axes
 
 
 @dataclass
@@ -215,7 +228,7 @@ def predict(interp, model=None, fmu=None, tol_mm=None, program=None):
         engine = "fmu"
     err = {a: interp.positions[a] - pos[a] for a in axes}
     if len(axes) >= 2:
-        c2 = axes[:2] if len(axes) == 2 else axes
+        c2 = contour_axes(axes)
         cmd = np.column_stack([interp.positions[a] for a in c2])
         act = np.column_stack([pos[a] for a in c2])
         contour = signed_contour_error(cmd, act)

@@ -18,8 +18,8 @@ def path_figure(rep, name, pr, magnify=None, title=""):
     """XY path: programmed (black) and predicted with the contour error magnified and coloured."""
     plt = _plt()
     from matplotlib.collections import LineCollection
-    from .predict import signed_contour_error
-    a, b = pr.axes[:2]
+    from .predict import contour_axes, signed_contour_error
+    a, b = contour_axes(pr.axes)[:2]
     ip = pr.interp
     cx, cy = ip.positions[a], ip.positions[b]
     c, foot, nrm = signed_contour_error(np.column_stack([cx, cy]),
