@@ -45,6 +45,14 @@ def test_validate_fmu_against_reference_and_measurement(case):
         assert res.axes[a]["rms_um"] == pytest.approx(NOISE_MM * 1e3, rel=0.1)
         assert res.axes[a]["max_um"] > 3 * res.axes[a]["rms_um"]
     assert res.contour["axes"] == ["x", "y"] and 0 < res.contour["rms_um"] < 2 * NOISE_MM * 1e3
+    # a measurement anywhere on the commanded path has no contour error, so its contour
+    # discrepancy is the FMU's own contour error whatever its lag along the path (a tracking
+    # error is not: it passed for the contour error before)
+    t, cmd = case["trace"].t[:1000], {a: case["trace"].cmd(a)[:1000] for a in ("x", "y")}
+    on_path = [validate_fmu(case["fmu"], Trace.from_arrays(t, {a: {"cmd": c, "act": np.r_[np.full(d, c[0]), c[:1000 - d]]}
+                                                              for a, c in cmd.items()})) for d in (0, 5)]
+    assert on_path[0].contour == on_path[1].contour and on_path[0].contour["rms_um"] > 1.0
+    assert on_path[0].axes["x"]["rms_um"] != on_path[1].axes["x"]["rms_um"]
     d = res.to_dict()
     assert {"problems", "max_abs_diff_reference_mm", "axes", "contour", "ok"} <= set(d)
     json.dumps(d)
