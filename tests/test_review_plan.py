@@ -86,7 +86,7 @@ TS_C = 1e-3
 LIM_C = {a: AxisLimits(200.0, 5000.0, 2e5) for a in "xyz"}
 
 
-def _two_axis_model(A1, B1, C1, axes, method):
+def _two_axis_model(A1, B1, C1, axes, method, Ts=TS_C):
     """The same single-axis discrete state space (A1, B1, C1) on each of two axes."""
     n = A1.shape[0]
     A = np.zeros((2 * n, 2 * n))
@@ -96,13 +96,13 @@ def _two_axis_model(A1, B1, C1, axes, method):
         A[m * n:(m + 1) * n, m * n:(m + 1) * n] = A1
         B[m * n:(m + 1) * n, m] = B1
         C[m, m * n:(m + 1) * n] = C1
-    return DriveModel(TS_C, A, B, C, np.zeros((2, 2)), [Port(f"{a}_cmd", "mm", "command", a) for a in axes],
+    return DriveModel(Ts, A, B, C, np.zeros((2, 2)), [Port(f"{a}_cmd", "mm", "command", a) for a in axes],
                       [Port(f"{a}_pos", "mm", "position", a) for a in axes], method=method)
 
 
-def _lag(p, axes=("x", "y")):
+def _lag(p, axes=("x", "y"), Ts=TS_C):
     """x[k+1] = p x[k] + (1 - p) r[k]: a proportional position loop sampled at Ts."""
-    return _two_axis_model(np.array([[p]]), np.array([1.0 - p]), np.array([1.0]), axes, "lag")
+    return _two_axis_model(np.array([[p]]), np.array([1.0 - p]), np.array([1.0]), axes, "lag", Ts)
 
 
 def _delay(d, axes=("x", "y")):
@@ -121,11 +121,11 @@ def _circle(plane, g, R=10.0, F=3000):
     return parse_program(f"{plane} G0 {first}{R}\n{g} {first}{R} {second}0 {centre}{-R} F{F}")
 
 
-def _cruise(ip, plane, R):
+def _cruise(ip, plane, R, Ts=TS_C):
     """Samples of the circle block at constant angular step, and that step's rate w (rad/s)."""
     i, j = {"G17": ("x", "y"), "G18": ("z", "x"), "G19": ("y", "z")}[plane]
     ang = np.unwrap(np.arctan2(ip.positions[j], ip.positions[i]))
-    w = np.diff(ang) / TS_C
+    w = np.diff(ang) / Ts
     wm = np.abs(w).max()
     k = np.flatnonzero(np.abs(np.abs(w) - wm) < 1e-9 * wm)
     assert k.size > 1000 and np.all(np.diff(k) == 1)          # one stretch at constant speed
@@ -171,3 +171,19 @@ def test_contour_error_of_a_pure_delay_is_zero(d):
     assert np.abs(pr.contour[steady]).max() < 1e-12
     track = np.hypot(pr.error["x"][steady], pr.error["y"][steady])
     np.testing.assert_allclose(track, 2 * R * math.sin(w * d * TS_C / 2), rtol=1e-9)
+
+
+def test_contour_error_when_the_lag_is_many_samples():
+    """Kv = 16.7 1/s (1 m/min per mm) sampled at 8 kHz: the tool lags 1 / (Kv Ts) = 479 samples
+    behind its command; the contour error is still R (1 - |H|) (it was measured to a later path
+    point, 0.577 mm instead of 0.414 mm, when the search window was a fixed 400 samples)."""
+    R, Kv, Ts = 10.0, 16.7, 1.25e-4
+    p = math.exp(-Kv * Ts)
+    ip = interpolate(_circle("G17", "G3", R), LIM_C, Ts)
+    k, w = _cruise(ip, "G17", R, Ts)
+    steady = k[k > k[0] + int(20 / Kv / Ts)]
+    pr = predict(ip, model=_lag(p, Ts=Ts))
+    expected = R * (1 - abs((1 - p) / (np.exp(1j * w * Ts) - p)))         # 0.4141 mm
+    sag = R * (1 - math.cos(w * Ts / 2))
+    c = pr.contour[steady]
+    assert c.max() <= expected + 1e-9 and c.min() >= expected - sag - 1e-9

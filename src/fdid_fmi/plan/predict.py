@@ -14,6 +14,7 @@ G3 arc, outside a clockwise G2 one), negative when right.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -101,6 +102,14 @@ def signed_contour_error(cmd, act, window=400, feet=False, k_nearest=12):
         ln = np.sqrt(np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300))
         nrm = np.column_stack([-ab[:, 1], ab[:, 0]]) / ln[:, None]
     return (out, foot, nrm) if feet else out
+
+
+def contour_window(Ts):
+    """Search window of :func:`signed_contour_error` for commands sampled at Ts: +-400 samples
+    and at least +-0.2 s, so that a tool lagging up to 0.2 s behind its command (a position
+    loop gain down to 5 1/s) finds its nearest path point at any sample rate (a fixed 400
+    samples is only 50 ms at 8 kHz: the error was then measured to a later point of the path)."""
+    return max(400, int(math.ceil(0.2 / Ts)))
 
 
 def contour_axes(axes):
@@ -231,7 +240,7 @@ def predict(interp, model=None, fmu=None, tol_mm=None, program=None):
         c2 = contour_axes(axes)
         cmd = np.column_stack([interp.positions[a] for a in c2])
         act = np.column_stack([pos[a] for a in c2])
-        contour = signed_contour_error(cmd, act)
+        contour = signed_contour_error(cmd, act, window=contour_window(interp.Ts))
     else:
         contour = np.zeros(interp.n)
     pr = Prediction(interp=interp, axes=axes, position=pos, error=err, contour=contour, engine=engine)

@@ -18,12 +18,13 @@ def path_figure(rep, name, pr, magnify=None, title=""):
     """XY path: programmed (black) and predicted with the contour error magnified and coloured."""
     plt = _plt()
     from matplotlib.collections import LineCollection
-    from .predict import contour_axes, signed_contour_error
+    from .predict import contour_axes, contour_window, signed_contour_error
     a, b = contour_axes(pr.axes)[:2]
     ip = pr.interp
     cx, cy = ip.positions[a], ip.positions[b]
     c, foot, nrm = signed_contour_error(np.column_stack([cx, cy]),
-                                        np.column_stack([pr.position[a], pr.position[b]]), feet=True)
+                                        np.column_stack([pr.position[a], pr.position[b]]), feet=True,
+                                        window=contour_window(ip.Ts))
     span = max(np.ptp(cx), np.ptp(cy), 1e-9)
     emax = max(float(np.max(np.abs(c))), 1e-12)
     if magnify is None:
