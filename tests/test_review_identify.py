@@ -128,3 +128,39 @@ def test_ranges_with_different_sample_times_are_refused(trace, method):
 def test_no_range_is_one_error_not_an_index_error(method):
     with pytest.raises(InputError, match="no data range given"):
         IDENTIFIERS[method]([])
+
+
+# ----------------------------------------------------------------------------- excitation
+def cruise(n=400):
+    """A range at constant velocity (30 mm/s, lag 0.37 mm): no acceleration, no jerk."""
+    t = np.arange(n) * TS
+    cmd = 5.0 + 30.0 * t
+    return Trace.from_arrays(t, {"x": {"cmd": cmd, "act": cmd - 0.0123 * 30.0}}, source="cruise")
+
+
+def test_quasi_static_refuses_gains_a_cruise_cannot_carry():
+    # the acceleration and jerk of a cruise are rounding noise (1e-11 mm/s^2); the LS scaled them
+    # up and reported K_acc ~ 1e8 s^2 (a prediction of km for any real acceleration)
+    with pytest.raises(InputError, match=r"cruise, column 'x.cmd': the commanded acceleration .* K_acc"):
+        idf.identify_quasi_static(cruise())
+
+
+@pytest.mark.parametrize("method", ["quasi-static", "full-ls"])
+def test_too_few_samples_are_refused(trace, method):
+    # 3 samples gave 3 quasi-static gains exactly (K_acc -5.7e9 s^2) and Full LS 8 parameters of
+    # an underdetermined LS, both reported as models
+    short = Trace.from_arrays(trace.t[:40], {"x": {"cmd": trace.cmd("x")[300:340],
+                                                   "act": trace.act("x")[300:340]}}, source="short")
+    with pytest.raises(InputError, match=r"short, column 'samples': 40 samples are too few"):
+        IDENTIFIERS[method](short)
+
+
+def test_full_ls_refuses_a_cruise():
+    with pytest.raises(InputError, match=r"the commanded acceleration .* \(alpha_2, beta_2\) cannot be identified"):
+        idf.identify_full_ls(cruise(), "x")
+
+
+def test_quasi_static_on_a_jerk_limited_move_is_still_identified(trace):
+    m = idf.identify_quasi_static(trace)
+    assert all(np.isfinite(v) for v in m.gains["x"].values())
+    assert 0.0 < m.gains["x"]["K_vel"] < 0.1

@@ -113,7 +113,7 @@ def identify_full_ls(traces, axis="x", cutoff_hz=None, order=2, v_tilde=None, p_
     ------
     InputError if the unconstrained LS gives an unstable closed loop (lack of excitation).
     """
-    from .quasi_static import default_cutoff
+    from .quasi_static import MIN_SAMPLES_PER_GAIN, check_excitation, default_cutoff
     traces = training_ranges(traces, [axis], roles=("cmd", "act"))
     Ts = traces[0].Ts
     cutoff_hz = cutoff_hz or default_cutoff(Ts)
@@ -133,6 +133,12 @@ def identify_full_ls(traces, axis="x", cutoff_hz=None, order=2, v_tilde=None, p_
         ys.append(x)
         vmax = max(vmax, float(np.max(np.abs(xd))))
     Phi, Y = np.vstack(rows), np.concatenate(ys)
+    need = MIN_SAMPLES_PER_GAIN * Phi.shape[1]
+    if Phi.shape[0] < need:     # 3 samples for 8 parameters were fitted (min-norm) and reported
+        raise InputError(f"{Phi.shape[0]} samples are too few for the {Phi.shape[1]} parameters of "
+                         f"Eqn 4.7 (need at least {need})", source=traces[0].source, column="samples")
+    check_excitation(Phi[:, [4, 5]], cutoff_hz, axis, traces[0].source,
+                     gains=("beta_1", "the acceleration terms of Eqn 4.7 (alpha_2, beta_2)"))
     scale = np.max(np.abs(Phi), axis=0)
     scale[scale == 0] = 1.0
     theta = np.linalg.lstsq(Phi / scale, Y, rcond=None)[0] / scale          # Eqn 4.7

@@ -60,6 +60,7 @@ def identify_quasi_static(traces, axes=None, cutoff_hz=None, order=2, terms=3):
         if np.ptp(np.concatenate([tr.cmd(ax) for tr in traces])) <= 0:
             raise InputError(f"axis '{ax}' does not move in the data range: nothing to identify",
                              source=traces[0].source, column=f"{ax}.cmd")
+        check_excitation(Phi, cutoff_hz, ax, traces[0].source)
         scale = np.max(np.abs(Phi), axis=0)
         scale[scale == 0] = 1.0
         theta = np.linalg.lstsq(Phi / scale, Y, rcond=None)[0] / scale
@@ -71,6 +72,36 @@ def identify_quasi_static(traces, axes=None, cutoff_hz=None, order=2, terms=3):
                             metrics=metrics,
                             provenance={"data": [{"source": tr.source, "sha256": tr.meta.get("sha256")
                                                   or tr.fingerprint()} for tr in traces]})
+
+
+MIN_SAMPLES_PER_GAIN = 20     # as the pole search: 20 samples per estimated parameter
+UNEXCITED = 1e-6              # a derivative this small against the velocity is rounding noise
+GAIN_NAMES = ("K_vel", "K_acc", "K_jerk")
+DERIVATIVE_NAMES = ("velocity", "acceleration", "jerk")
+
+
+def check_excitation(Phi, cutoff_hz, axis, source=None, gains=GAIN_NAMES):
+    """Refuse command derivatives (columns of ``Phi``, velocity first) that cannot carry a gain.
+
+    Fewer than ``MIN_SAMPLES_PER_GAIN`` samples per gain fit anything (3 samples give 3 gains
+    exactly), and a range at constant velocity has an acceleration and jerk of rounding noise
+    (1e-11 mm/s^2) that the column scaling of the LS blows up into gains such as K_acc = 7e7 s^2.
+    Each derivative is compared with the velocity at the filter's band: max |x_r^(k)| /
+    (2 pi f_c)^(k-1) against max |x_r'| (both mm/s); below ``UNEXCITED`` it is noise.
+    """
+    N, terms = Phi.shape
+    need = MIN_SAMPLES_PER_GAIN * terms
+    if N < need:
+        raise InputError(f"{N} samples are too few for {terms} gains (need at least {need})",
+                         source=source, column="samples")
+    level = np.max(np.abs(Phi), axis=0) / (2 * np.pi * cutoff_hz) ** np.arange(terms)
+    for k in range(1, terms):
+        if not level[k] > UNEXCITED * level[0]:
+            what = DERIVATIVE_NAMES[k] if k < len(DERIVATIVE_NAMES) else f"derivative of order {k + 1}"
+            gain = gains[k] if k < len(gains) else f"K_higher[{k - len(gains)}]"
+            raise InputError(f"the commanded {what} of axis '{axis}' is zero over the data range (a "
+                             f"move at constant velocity): {gain} cannot be identified; give data with "
+                             f"accelerating and decelerating moves", source=source, column=f"{axis}.cmd")
 
 
 def predict_quasi_static(model, cmds, t):
