@@ -187,3 +187,24 @@ def test_contour_error_when_the_lag_is_many_samples():
     sag = R * (1 - math.cos(w * Ts / 2))
     c = pr.contour[steady]
     assert c.max() <= expected + 1e-9 and c.min() >= expected - sag - 1e-9
+
+
+# ----------------------------------------------------------------- the program writer
+def test_write_program_is_atomic_and_never_overwrites_its_source(tmp_path):
+    from fdid_fmi.plan.ncprogram import read_program, write_program
+    src = tmp_path / "part.nc"
+    src.write_text("G1 X10 F600\nG1 Y10\n")
+    p = read_program(src)
+    with pytest.raises(InputError, match="overwrite the input"):
+        write_program(p, {0: 5.0}, path=src)
+    assert src.read_text() == "G1 X10 F600\nG1 Y10\n"
+    with pytest.raises(InputError, match="directory"):              # was IsADirectoryError
+        write_program(p, {0: 5.0}, path=tmp_path)
+    out = tmp_path / "opt.nc"
+    out.write_text("old\n")
+    link = tmp_path / "old_link.nc"
+    link.hardlink_to(out)                     # the old file: replaced, not rewritten in place
+    text = write_program(p, {0: 5.0}, path=out)
+    assert out.read_text() == text and "F300" in text
+    assert link.read_text() == "old\n"
+    assert [f.name for f in tmp_path.iterdir() if f.name.endswith(".part")] == []

@@ -435,7 +435,8 @@ def write_program(program, feeds_mm_s, path=None, header=None):
     ----------
     program : Program
     feeds_mm_s : dict block index -> new path feed, mm/s (blocks left out keep theirs)
-    path : optional file to write
+    path : optional file to write (atomically: complete or not at all; never the program's own
+        source file)
     header : str, optional   a comment line put first
 
     Returns
@@ -471,7 +472,10 @@ def write_program(program, feeds_mm_s, path=None, header=None):
         out.append(_replace_f(raw, fword))
     text = "\n".join(out) + "\n"
     if path is not None:
-        Path(path).write_text(text, encoding="utf-8")
+        from ..outputs import atomic_write, check_output
+        src = Path(program.source)
+        check_output(path, inputs=[src] if src.is_file() else [], what="NC program")
+        atomic_write(path, text)
     return text
 
 
