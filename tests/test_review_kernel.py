@@ -97,3 +97,47 @@ def test_allpole_in_place_gives_lfilter_of_the_input_as_it_was(shift):
     expected = ss.lfilter([0.5], AN, W[0].copy(), zi=zi[0])[0]
     kernel.allpole(0.5, AN, W, zi, R)
     assert np.array_equal(R[0, n:], expected)
+
+
+def _rows_reference(R, n, inputs, F):
+    N = R.shape[1] - n
+    return np.array([sum(F[r, j] * R[i, n - j:n - j + N] for j in range(n + 1))
+                     for r, i in enumerate(inputs)])
+
+
+def test_regressor_rows_equal_the_sums_for_good_arguments():
+    rng = np.random.default_rng(8)
+    R, F = rng.normal(size=(3, 42)), rng.normal(size=(4, 3))
+    inputs = np.array([0, 2, 1, 2])
+    ref = _rows_reference(R, 2, inputs, F)
+    for Rv, inp in ((R, inputs), (np.asfortranarray(R), inputs.astype(np.uint8)),
+                    (R.astype(np.float32).astype(float), inputs)):
+        out = kernel.regressor_rows(Rv, 2, inp, F)
+        assert np.allclose(out, _rows_reference(Rv, 2, inputs, F), rtol=0, atol=0)
+    assert np.allclose(kernel.regressor_rows(R, 2, inputs, F), ref, rtol=0, atol=0)
+    late = kernel.regressor_rows(R, 2, inputs, F, 5, np.array([0.0, 1.0, 0.0, 0.0]), np.full(4, 2.0),
+                                 np.ones((3, 40)))
+    assert np.array_equal(late[1], ref[1, 5:] - 2.0) and np.array_equal(late[0], ref[0, 5:])
+
+
+@pytest.mark.parametrize("case", ["float inputs", "bool inputs", "inputs beyond int", "F columns",
+                                  "F flat", "R 3-d", "negative order"])
+def test_regressor_rows_refuse_arguments_they_would_reinterpret(case):
+    rng = np.random.default_rng(9)
+    R, F, inputs, n = rng.normal(size=(3, 42)), rng.normal(size=(2, 3)), np.array([0, 1]), 2
+    if case == "float inputs":
+        inputs = np.array([0.7, 1.9])               # was truncated to rows 0 and 1
+    elif case == "bool inputs":
+        inputs = np.array([True, False])
+    elif case == "inputs beyond int":
+        inputs = np.array([0, 2 ** 32 + 1])         # was wrapped to row 1
+    elif case == "F columns":
+        F = rng.normal(size=(3, 2))                 # was read as (2, 3)
+    elif case == "F flat":
+        F = rng.normal(size=6)
+    elif case == "R 3-d":
+        R = rng.normal(size=(3, 4, 42))             # was read as (3, 4) rows
+    else:
+        n, F = -1, np.zeros((2, 0))
+    with pytest.raises(ValueError, match="regressor_rows"):
+        kernel.regressor_rows(R, n, inputs, F)

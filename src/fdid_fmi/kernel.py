@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ctypes as ct
 import functools
+import operator
 
 import numpy as np
 
@@ -315,16 +316,27 @@ def regressor_rows(R, n, inputs, F, start=0, late=None, late_c=None, S=None):
     -------
     (rows, N - start)
     """
-    R = _c(R)
+    n, start = operator.index(n), operator.index(start)
+    R, F = _real(R, "R"), _real(F, "F")
+    # the C takes R as (m, N + n) rows and F as (rows, n + 1): other shapes were reinterpreted
+    if not (0 <= n < _INT_MAX and R.ndim == 2 and R.shape[1] >= n and F.ndim in (1, 2)
+            and F.shape[-1] == n + 1):
+        raise ValueError(f"regressor_rows: R must be (m, N + n) and F (rows, n + 1) with n = {n} >= 0, "
+                         f"got R {R.shape} and F {F.shape}")
     m, N = R.shape[0], R.shape[1] - n
-    F = _c(F).reshape(-1, n + 1)
+    F = F.reshape(-1, n + 1)
     rows = F.shape[0]
-    inputs = np.ascontiguousarray(inputs, dtype=np.intc).reshape(-1)
-    late = np.zeros(rows, np.intc) if late is None else np.ascontiguousarray(late, dtype=np.intc)
-    late_c = np.zeros(rows) if late_c is None else _c(late_c)
-    S = np.zeros((1, 1)) if S is None else _c(S)
-    if inputs.shape != (rows,) or (rows and (inputs.min() < 0 or inputs.max() >= m)) \
-            or not 0 <= start <= N or late.shape != (rows,) or late_c.shape != (rows,) \
+    inputs = np.asarray(inputs).reshape(-1)
+    # row indices: integers in 0..m-1 (checked before the cast to int, which would wrap or
+    # truncate them: 0.7 -> 0, 2**32 -> 0)
+    if inputs.shape != (rows,) or rows > _INT_MAX or (rows and (
+            inputs.dtype.kind not in "iu" or inputs.min() < 0 or inputs.max() >= m)):
+        raise ValueError(f"regressor_rows: inputs must be {rows} integer row indices of R in 0..{m - 1}")
+    inputs = np.ascontiguousarray(inputs, dtype=np.intc)
+    late = np.zeros(rows, np.intc) if late is None else (np.asarray(late) != 0).astype(np.intc)
+    late_c = np.zeros(rows) if late_c is None else _real(late_c, "late_c")
+    S = np.zeros((1, 1)) if S is None else _real(S, "S")
+    if not 0 <= start <= N or late.shape != (rows,) or late_c.shape != (rows,) \
             or (late.any() and S.shape != (m, N)):
         raise ValueError("regressor_rows: inputs, start, late, late_c or S do not fit R and F")
     out = np.empty((rows, N - start))
