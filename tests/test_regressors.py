@@ -22,6 +22,11 @@ def test_characteristic_polynomial_roots():
     expect = np.sort_complex(np.array(rg.poles_from_parameters([5.0, 40.0], [(25.8, 0.006)])))
     np.testing.assert_allclose(roots, expect, rtol=1e-9)
     assert len(a) == 5
+    # and the roots are the parameters' poles in rad/s (both functions could share a unit slip)
+    wn = 2 * np.pi * 25.8
+    pair = -0.006 * wn + 1j * wn * np.sqrt(1 - 0.006 ** 2)
+    np.testing.assert_allclose(roots, np.sort_complex([-2 * np.pi * 40.0, -2 * np.pi * 5.0, pair, pair.conjugate()]),
+                               rtol=1e-9)
 
 
 def test_regressors_equal_bilinear_filters(poly):
