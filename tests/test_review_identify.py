@@ -164,3 +164,26 @@ def test_quasi_static_on_a_jerk_limited_move_is_still_identified(trace):
     m = idf.identify_quasi_static(trace)
     assert all(np.isfinite(v) for v in m.gains["x"].values())
     assert 0.0 < m.gains["x"]["K_vel"] < 0.1
+
+
+# ----------------------------------------------------------------------------- external inputs
+def with_extra(tr, name, data):
+    chans = dict(tr.channels)
+    chans[name] = Channel(name, "N", data)
+    return Trace(t=tr.t, channels=chans, roles={a: dict(r) for a, r in tr.roles.items()}, source=tr.source)
+
+
+def test_constant_external_input_is_refused(trace):
+    # its regressors were rounding noise (1e-15) scaled up into numerators of 1e13: accepted, and
+    # a worse model than without it
+    st = idf.mimo_structure(("x",), externals=("pulses_N",), same_sample="hold")
+    with pytest.raises(InputError, match=r"column 'pulses_N': the external input is constant \(3\)"):
+        idf.identify_mimo(with_extra(trace, "pulses_N", np.full(trace.n, 3.0)), st, maxiter=2)
+
+
+def test_varying_external_input_is_used(trace):
+    st = idf.mimo_structure(("x",), externals=("pulses_N",), same_sample="hold")
+    pulses = np.where(np.sin(2 * np.pi * trace.t) > 0, 1.0, -1.0)
+    m = idf.identify_mimo(with_extra(trace, "pulses_N", pulses), st, maxiter=2, refine=False)
+    assert "pulses_N" in [p.name for p in m.inputs]
+    assert np.all(np.isfinite(m.C)) and np.all(np.isfinite(m.D))

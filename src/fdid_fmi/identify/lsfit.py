@@ -76,6 +76,13 @@ class LSProblem:
         self.coef = rg.SAME_SAMPLE[structure.same_sample]
         self.m = len(structure.inputs)
         self.p = len(structure.outputs)
+        for ins in structure.inputs:
+            # a constant input's regressors (its d.c. term apart) are rounding noise (1e-15) that
+            # the column scaling of the LS turned into numerators of 1e13 and a worse model
+            if ins.kind == "external" and all(np.ptp(tr.extra(ins.channel)) == 0 for tr in traces):
+                raise InputError(f"the external input is constant ({float(traces[0].extra(ins.channel)[0]):g}) "
+                                 f"in every data range: it carries nothing to identify; leave it out",
+                                 source=traces[0].source, column=ins.channel)
         self.segments = [self._segment(tr) for tr in traces]
         self.N = sum(sg.Z.shape[1] for sg in self.segments)
         need = 20 * (self.n + 1) * self.m
