@@ -208,3 +208,103 @@ def test_write_program_is_atomic_and_never_overwrites_its_source(tmp_path):
     assert out.read_text() == text and "F300" in text
     assert link.read_text() == "old\n"
     assert [f.name for f in tmp_path.iterdir() if f.name.endswith(".part")] == []
+
+
+# ----------------------------------------------------------------- parser: hand-derived geometry
+def _one(text):
+    blocks = parse_program(text).blocks
+    return blocks[-1]
+
+
+def test_arcs_by_centre_and_by_radius():
+    # R > 0: the shorter arc; chord 10 along +X, R 10: centre at (5, -/+ sqrt(100 - 25))
+    h = math.sqrt(75.0)
+    b = _one("G2 X10 Y0 R10 F600")
+    assert b.center[:2] == pytest.approx([5.0, -h]) and b.sweep == pytest.approx(math.pi / 3)
+    b = _one("G3 X10 Y0 R10 F600")
+    assert b.center[:2] == pytest.approx([5.0, h]) and b.sweep == pytest.approx(math.pi / 3)
+    # R < 0: the longer arc (300 deg) about the other centre
+    b = _one("G2 X10 Y0 R-10 F600")
+    assert b.center[:2] == pytest.approx([5.0, h]) and b.sweep == pytest.approx(5 * math.pi / 3)
+    assert b.length == pytest.approx(10 * 5 * math.pi / 3)
+    # a full circle: I J with the end on the start
+    b = _one("G3 X0 Y0 I5 J0 F600")
+    assert b.sweep == pytest.approx(2 * math.pi) and b.length == pytest.approx(10 * math.pi)
+    # helix: one turn of radius 5 rising 3 mm
+    b = _one("G3 X0 Y0 Z3 I5 F600")
+    assert b.length == pytest.approx(math.hypot(10 * math.pi, 3.0))
+    # end off its circle by more than 0.002 mm + 0.1 % of r: refused; within: accepted
+    with pytest.raises(InputError, match="row 1.*not on the arc"):
+        parse_program("G2 X10.02 Y0 I5 F600")                    # r 5 -> 5.02: 0.02 > 0.007
+    assert _one("G2 X10.005 Y0 I5 F600").r1 == pytest.approx(5.005)
+    with pytest.raises(InputError, match="half the chord"):
+        parse_program("G2 X10 Y0 R4.9 F600")
+
+
+@pytest.mark.parametrize("plane, text, normal", [
+    ("G17", "G17 G3 X0 Y0 I5 F600", 2), ("G18", "G18 G3 Z0 X0 K5 F600", 1),
+    ("G19", "G19 G3 Y0 Z0 J5 F600", 0)])
+def test_g3_turns_counter_clockwise_about_the_plane_normal(plane, text, normal):
+    """(p - c) x dp/ds has a positive component along the plane's positive normal (Z, Y, X)."""
+    b = _one(text)
+    s = np.linspace(0, b.length, 200)
+    p = b.point(s)
+    r = p[:-1] - b.center
+    cross = np.cross(r, np.diff(p, axis=0))
+    assert np.all(cross[:, normal] > 0)
+    assert np.allclose(np.linalg.norm(r, axis=1), 5.0)
+
+
+def test_modes_units_words_and_comments():
+    p = parse_program("%\nO12 (part)\nN10 G21 G90 G94 F600 ; mm/min\n/N20 G1 X10 (to x10) Y5\n"
+                      "N30 G91 X1 Y1\nN40 G20 G90 X1 F10\nN50 G93 G1 Y0 F2\nN60 G94 G0 Z1\n%\n")
+    b = p.blocks
+    assert [x.number for x in b] == [20, 30, 40, 50, 60]
+    assert b[0].end.tolist() == [10, 5, 0] and b[0].feed == pytest.approx(10.0)      # 600 mm/min
+    assert b[1].end.tolist() == [11, 6, 0]                                            # incremental
+    assert b[2].end.tolist() == pytest.approx([25.4, 6, 0])                           # 1 inch
+    assert b[2].feed == pytest.approx(10 * 25.4 / 60)                                 # 10 in/min
+    assert b[3].inverse_time and b[3].block_time == pytest.approx(30.0)               # 1 / (2/min)
+    assert b[4].kind == "rapid" and b[4].end[2] == pytest.approx(25.4) and math.isinf(b[4].feed)
+    for bad, what in (("G95 G1 X1 F1", "G95"), ("G1 X1 F0", "F must be > 0"), ("G1 X1 F-5", "F must be > 0"),
+                      ("G1 X1", "no feed rate"), ("G93 G1 X1", "without F")):
+        with pytest.raises(InputError, match=what):
+            parse_program(bad)
+
+
+# ----------------------------------------------------------------- interpolation
+LIM_I = {"x": AxisLimits(150.0, 3000.0, 8e4), "y": AxisLimits(80.0, 1000.0, 2e4), "z": AxisLimits(50.0, 800.0, 1e4)}
+PROG_I = ("G1 X30 Y10 F4000\nG1 X30 Y10\nG2 X50 Y10 R10\nG3 X30 Y10 R-12\nG3 X30 Y10 Z-4 I5 J0\n"
+          "G0 X0 Y0 Z0\nG93 G1 X20 F30\nG94 G18 G2 X30 Z0 R6 F3000\nG19 G3 Y20 Z0 J10\n")
+
+
+@pytest.mark.parametrize("Ts", [2.5e-4, 1e-3, 4e-3])
+def test_interpolation_limits_end_points_and_cycle_time(Ts):
+    p = parse_program(PROG_I)
+    ip = interpolate(p, LIM_I, Ts)
+    P = _P(ip)
+    assert _within_limits(P, LIM_I, Ts) <= 1.0
+    bound = 0.0
+    for b, (k0, k1) in zip(p.blocks, ip.spans):
+        assert np.array_equal(P[k1], b.end)                         # the end point on a sample
+        if b.kind == "rapid":
+            bound += max(abs(b.end[i] - b.start[i]) / LIM_I[a].v for i, a in enumerate("xyz"))
+        else:
+            bound += b.length / b.feed
+        if b.inverse_time:                                          # G93 F30: 2 s, not faster
+            assert (k1 - k0) * Ts >= 2.0 - 1e-12
+        if b.length == 0:                                           # the zero-length move
+            assert k1 == k0
+    assert ip.cycle_time >= bound
+    assert np.array_equal(P[-1], p.blocks[-1].end)
+
+
+def test_a_long_line_reaches_its_feed_and_no_more():
+    p = parse_program("G1 X100 Y50 F4000")
+    Ts = 1e-3
+    ip = interpolate(p, LIM_I, Ts)
+    v = np.linalg.norm(np.diff(_P(ip), axis=0), axis=1) / Ts
+    # F 66.7 mm/s along (2, 1)/sqrt(5): the y axis allows 80 / (1/sqrt 5) = 179 mm/s: F limits
+    assert v.max() <= 4000 / 60 * (1 + 1e-12)
+    assert v.max() == pytest.approx(4000 / 60, rel=2e-3)
+    assert ip.cycle_time >= math.hypot(100, 50) / (4000 / 60)
