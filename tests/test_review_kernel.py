@@ -141,3 +141,40 @@ def test_regressor_rows_refuse_arguments_they_would_reinterpret(case):
         n, F = -1, np.zeros((2, 0))
     with pytest.raises(ValueError, match="regressor_rows"):
         kernel.regressor_rows(R, n, inputs, F)
+
+
+def _moves(model, n=1500):
+    rng = np.random.default_rng(10)
+    return {a: fs.smooth_moves(n, rng, start=1.0 + i) for i, a in enumerate(model.axes)}
+
+
+@pytest.mark.parametrize("on", ["false", "0", float("nan"), None, 2])
+def test_friction_on_must_be_a_boolean(on):
+    from fdid_fmi.simulate import simulate
+    m = fs.siso_model()
+    with pytest.raises(InputError, match="x_friction_on.*true or false"):
+        simulate(m, _moves(m), Ts=m.Ts, params={"x_friction_on": on})
+
+
+def test_friction_on_booleans_and_their_numbers_agree():
+    from fdid_fmi.simulate import simulate
+    m = fs.siso_model()
+    c = _moves(m)
+    off = simulate(m, c, Ts=m.Ts, params={"x_friction_on": False}).y
+    on = simulate(m, c, Ts=m.Ts).y
+    assert not np.array_equal(on, off)
+    for v, ref in ((0, off), (0.0, off), (np.False_, off), (1, on), (np.True_, on), (True, on)):
+        assert np.array_equal(simulate(m, c, Ts=m.Ts, params={"x_friction_on": v}).y, ref), v
+
+
+def test_friction_parameters_of_an_axis_without_friction_are_refused():
+    from fdid_fmi.model import DriveModel
+    from fdid_fmi.simulate import simulate
+    s = fs.siso_model()                      # the same drive without its friction input
+    m = DriveModel(Ts=s.Ts, A=s.A, B=s.B[:, :1], C=s.C, D=s.D[:, :1], inputs=s.inputs[:1],
+                   outputs=s.outputs, method="hand-built")
+    c = _moves(m)
+    for p in ({"x_friction_level": 5.0}, {"x_v_tilde": 0.1}, {"x_friction_on": False}):
+        with pytest.raises(InputError, match="no friction input"):
+            simulate(m, c, Ts=m.Ts, params=p)
+    assert np.isfinite(simulate(m, c, Ts=m.Ts).y).all()

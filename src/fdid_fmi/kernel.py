@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ctypes as ct
 import functools
+import numbers
 import operator
 
 import numpy as np
@@ -197,12 +198,23 @@ class Stepper:
     def set_parameters(self, params, axes):
         """``<axis>_friction_on / _friction_level / _v_tilde`` overrides (the FMU parameters),
         checked as the FMU checks them (level finite and >= 0, v_tilde finite and > 0); an
-        unknown name is an error, not ignored."""
-        known = {f"{a}_{p}" for a in axes for p in ("friction_on", "friction_level", "v_tilde")}
+        unknown name is an error, not ignored; so are these names for an axis without friction
+        (the FMU has no such parameter; the core would ignore the value) and a ``friction_on``
+        that is not a boolean (the string ``"false"`` would have meant on)."""
+        names = ("friction_on", "friction_level", "v_tilde")
+        fric = {self.cm.model.inputs[i].axis for i in self.cm.layout.fric_inputs}
+        known = {f"{a}_{p}" for a in axes if a in fric for p in names}
         unknown = sorted(set(params) - known)
         if unknown:
-            raise InputError(f"unknown parameter(s) {unknown}; expected some of {sorted(known)}",
+            frictionless = sorted(a for a in axes if a not in fric
+                                  and any(f"{a}_{p}" in params for p in names))
+            why = f" (axes {frictionless} have no friction input)" if frictionless else ""
+            raise InputError(f"unknown parameter(s) {unknown}{why}; expected some of {sorted(known)}",
                              column="params")
+        for a in axes:
+            on = params.get(f"{a}_friction_on", False)
+            if not (isinstance(on, (bool, np.bool_)) or (isinstance(on, numbers.Real) and on in (0, 1))):
+                raise InputError(f"must be true or false (or 1 / 0), got {on!r}", column=f"{a}_friction_on")
         for k, a in enumerate(axes):
             if f"{a}_friction_level" in params:
                 lv = _number(params[f"{a}_friction_level"], f"{a}_friction_level")
