@@ -187,3 +187,19 @@ def test_varying_external_input_is_used(trace):
     m = idf.identify_mimo(with_extra(trace, "pulses_N", pulses), st, maxiter=2, refine=False)
     assert "pulses_N" in [p.name for p in m.inputs]
     assert np.all(np.isfinite(m.C)) and np.all(np.isfinite(m.D))
+
+
+# ----------------------------------------------------------------------------- a stuck axis
+def test_stuck_axis_names_the_measured_position_not_the_bounds(capsys, tmp_path, trace):
+    # the measured position never moves (dead encoder): the default v_tilde range became [0, 0]
+    # and the error blamed "v_tilde bounds [0.0, 0.0]" that the user never gave
+    stuck = Trace.from_arrays(trace.t, {"x": {"cmd": trace.cmd("x"), "act": np.zeros(trace.n)}})
+    csv = write_csv(tmp_path / "stuck.csv", stuck)
+    code, _, err = run(capsys, "identify", csv, "--structure", "rigid", "--same-sample", "hold",
+                       "--maxiter", "2", "-o", tmp_path / "m.json")
+    line = one_line(code, err, "stuck.csv", "column 'x_mm'", "never moves")
+    assert "bounds" not in line
+    # the structure choice says it once, not once per candidate
+    code, _, err = run(capsys, "identify", csv, "--same-sample", "hold", "--maxiter", "2", "--jobs", "1",
+                       "-o", tmp_path / "m.json")
+    assert one_line(code, err, "never moves").count("never moves") == 1

@@ -224,6 +224,9 @@ def choose(scores, parsimony=PARSIMONY):
     ``parsimony`` of the best (ties: the lower RMS)."""
     ok = [s for s in scores if np.isfinite(s.free_run_rms_mm)]
     if not ok:
+        errors = list(dict.fromkeys(s.error for s in scores))
+        if len(errors) == 1:     # the data's fault, not a structure's: say it once
+            raise InputError(f"no candidate structure could be identified: {errors[0]}", column="structure")
         raise InputError("no candidate structure could be identified: "
                          + "; ".join(f"{s.label}: {s.error}" for s in scores), column="structure")
     best = min(s.free_run_rms_mm for s in ok)
