@@ -178,3 +178,13 @@ def test_friction_parameters_of_an_axis_without_friction_are_refused():
         with pytest.raises(InputError, match="no friction input"):
             simulate(m, c, Ts=m.Ts, params=p)
     assert np.isfinite(simulate(m, c, Ts=m.Ts).y).all()
+
+
+@pytest.mark.parametrize("v", [np.nan, np.inf, -np.inf])
+def test_a_non_finite_start_velocity_is_named_not_blamed_on_the_model(v):
+    from fdid_fmi.simulate import simulate
+    m = fs.siso_model()
+    with pytest.raises(InputError, match="v0.*start velocities must be finite"):
+        simulate(m, _moves(m, 200), Ts=m.Ts, start_velocity={"x": v})
+    with pytest.raises(InputError, match="v0.*finite"):
+        kernel.run(kernel.CompiledModel(m), np.zeros((10, 1)), np.zeros((10, 2)), [v])

@@ -278,6 +278,9 @@ def run(compiled, cmds, exts, v0, params=None):
     if v0.shape != (na,):
         raise InputError(f"expected {na} start velocities (mm/s), one per axis {axes}, got shape "
                          f"{v0.shape}", column="v0")
+    if not np.isfinite(v0).all():       # as the FMU's <axis>_v0 parameter
+        raise InputError(f"start velocities must be finite numbers (mm/s), got "
+                         f"{dict(zip(axes, v0.tolist()))}", column="v0")
     st.views["v0"][:] = v0
     Y, U, V = np.empty((N, max(p, 1))), np.empty((N, max(m, 1))), np.empty((N, len(axes)))
     _lib().fdid_run(ct.byref(st.s), N, _dptr(cmds), _dptr(exts), _dptr(Y), _dptr(U), _dptr(V))
