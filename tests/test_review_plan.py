@@ -308,3 +308,17 @@ def test_a_long_line_reaches_its_feed_and_no_more():
     assert v.max() <= 4000 / 60 * (1 + 1e-12)
     assert v.max() == pytest.approx(4000 / 60, rel=2e-3)
     assert ip.cycle_time >= math.hypot(100, 50) / (4000 / 60)
+
+
+def test_bad_overrides_and_times_are_refused_with_either_corner_rule():
+    """The look-ahead took a NaN override (the block then jumped in one sample) and a 0 or
+    negative one (an array of 1e9..1e12 samples: MemoryError or the OOM killer); a negative
+    settle time or a NaN lead-in escaped as numpy errors."""
+    p = parse_program("G1 X10 F600\nG1 X20")
+    for corner in (None, 5.0):
+        with pytest.raises(InputError, match="override of line 1 must be > 0"):
+            interpolate(p, LIM, 1e-3, overrides={0: float("nan")}, corner_angle_deg=corner)
+    with pytest.raises(InputError, match="settle"):
+        interpolate(p, LIM, 1e-3, settle=-1.0)
+    with pytest.raises(InputError, match="lead_in"):
+        interpolate(p, LIM, 1e-3, lead_in=float("nan"), corner_angle_deg=5.0)

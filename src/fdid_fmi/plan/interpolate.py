@@ -249,6 +249,13 @@ def interpolate(program, limits, Ts, overrides=None, lead_in=0.05, settle=0.5, p
         raise InputError(f"Ts must be > 0 s, got {Ts!r}", column="Ts")
     if not program.blocks:
         raise InputError("the program has no motion block", source=program.source)
+    for name, val in (("lead_in", lead_in), ("settle", settle)):
+        if not (math.isfinite(val) and val >= 0):
+            raise InputError(f"{name} must be a finite time >= 0 s, got {val!r}", column=name)
+    for b in program.blocks:            # both corner rules (the look-ahead did not check them)
+        f = float((overrides or {}).get(b.index, 1.0))
+        if not f > 0:
+            raise InputError(f"feed override of line {b.line} must be > 0, got {f!r}", column="override")
     if corner_angle_deg is not None:
         from .lookahead import interpolate_lookahead
         return interpolate_lookahead(program, limits, Ts, corner_angle_deg, overrides, lead_in, settle)
