@@ -322,3 +322,14 @@ def test_bad_overrides_and_times_are_refused_with_either_corner_rule():
         interpolate(p, LIM, 1e-3, settle=-1.0)
     with pytest.raises(InputError, match="lead_in"):
         interpolate(p, LIM, 1e-3, lead_in=float("nan"), corner_angle_deg=5.0)
+
+
+def test_blocks_left_out_of_the_rewrite_keep_their_feed():
+    """F is modal: rewriting block 1's F to 300 made the next blocks, which relied on F600 of
+    line 1, run at 300 too ("blocks left out keep theirs", write_program's docstring)."""
+    from fdid_fmi.plan.ncprogram import write_program
+    p = parse_program("G1 X10 F600\nG1 X20\nG2 X30 Y10 R10 (arc)\nG20 G1 X2 F10\nX3\n")
+    text = write_program(p, {0: 5.0, 3: 10 * 25.4 / 60 / 2})
+    q = parse_program(text)
+    assert [b.feed * 60 for b in q.blocks] == pytest.approx([300, 600, 600, 127, 254])
+    assert text.splitlines()[2] == "G2 X30 Y10 R10 F600 (arc)"

@@ -434,7 +434,8 @@ def write_program(program, feeds_mm_s, path=None, header=None):
     Parameters
     ----------
     program : Program
-    feeds_mm_s : dict block index -> new path feed, mm/s (blocks left out keep theirs)
+    feeds_mm_s : dict block index -> new path feed, mm/s (blocks left out keep theirs: after a
+        rewritten F, a G94 block left out that relied on the modal F gets its own F written)
     path : optional file to write (atomically: complete or not at all; never the program's own
         source file)
     header : str, optional   a comment line put first
@@ -444,10 +445,14 @@ def write_program(program, feeds_mm_s, path=None, header=None):
     str, the new program text. G93 blocks get F scaled by the feed ratio (inverse time is
     proportional to the feed); G94 blocks get F in units/min.
     """
-    by_line = {}
+    by_line, kept = {}, {}
     for b in program.blocks:
-        if b.index in feeds_mm_s and b.kind in ("line", "arc"):
-            by_line[b.line] = b
+        if b.kind in ("line", "arc"):
+            if b.index in feeds_mm_s:
+                by_line[b.line] = b
+            elif not b.inverse_time:
+                kept[b.line] = b
+    modal_changed = False        # a rewritten F is modal: later blocks left out get their own F
     out = []
     lines = list(program.lines)
     head = f"({_safe_comment(header)})" if header else None
@@ -456,6 +461,10 @@ def write_program(program, feeds_mm_s, path=None, header=None):
         head = None
     for row, raw in enumerate(lines, 1):
         b = by_line.get(row)
+        if b is None and modal_changed and row in kept and not _has_f(raw):
+            k = kept[row]
+            out.append(_replace_f(raw, k.feed * 60.0 / (INCH if k.units == "inch" else 1.0)))
+            continue
         if b is None:
             out.append(raw)
             if head and row == 1:            # after the leading '%'
@@ -469,6 +478,7 @@ def write_program(program, feeds_mm_s, path=None, header=None):
             fword = 60.0 / b.block_time * new / b.feed
         else:
             fword = new * 60.0 / (INCH if b.units == "inch" else 1.0)
+            modal_changed = True
         out.append(_replace_f(raw, fword))
     text = "\n".join(out) + "\n"
     if path is not None:
@@ -477,6 +487,14 @@ def write_program(program, feeds_mm_s, path=None, header=None):
         check_output(path, inputs=[src] if src.is_file() else [], what="NC program")
         atomic_write(path, text)
     return text
+
+
+def _has_f(raw):
+    """Whether a (readable) program line carries an F word outside its comments."""
+    line = raw.strip()
+    if line.startswith("/"):
+        line = line[1:]
+    return any(w[0] == "F" for w in tokenize(_strip_comments(line, "<line>", None)))
 
 
 def _safe_comment(s):
