@@ -333,3 +333,18 @@ def test_blocks_left_out_of_the_rewrite_keep_their_feed():
     q = parse_program(text)
     assert [b.feed * 60 for b in q.blocks] == pytest.approx([300, 600, 600, 127, 254])
     assert text.splitlines()[2] == "G2 X30 Y10 R10 F600 (arc)"
+
+
+def test_controller_setpoints_at_rest_before_a_closed_contour_belong_to_its_start():
+    """A trace starts at rest on the start point of a closed contour (the square ends there too):
+    those samples were given to the last block at path length 40 mm (its end)."""
+    from fdid_fmi.plan.interpolate import commands_from_trace
+    from fdid_fmi.trace import Trace
+    p = parse_program("G1 X10 F3000\nY10\nX0\nY0\n")
+    ip = interpolate(p, LIM, 1e-3)
+    tr = Trace.from_arrays(ip.t, {a: {"cmd": ip.positions[a]} for a in ("x", "y")}, source="setpoints")
+    ic = commands_from_trace(p, tr, ["x", "y"])
+    rest = slice(0, ip.spans[0][0] + 1)                        # the lead-in, at (0, 0)
+    assert np.all(ic.block_of_sample[rest] == 0)
+    assert np.all(ic.path_s[rest] == 0.0)
+    assert np.all(ic.block_of_sample[-10:] == 3) and ic.path_s[-1] == pytest.approx(40.0)

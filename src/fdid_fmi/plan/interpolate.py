@@ -352,6 +352,8 @@ def commands_from_trace(program, trace, axes):
     owner = np.empty(trace.n, int)
     path_s = np.empty(trace.n)
     motion = np.vstack([np.diff(P, axis=0), np.zeros((1, 3))])
+    moved = np.flatnonzero(np.any(motion[:, dims] != 0, axis=1))
+    first_move = int(moved[0]) if moved.size else trace.n
     j = 0
     win = 4000
     for k in range(trace.n):
@@ -361,7 +363,14 @@ def commands_from_trace(program, trace, axes):
         # a corner is in two blocks: of the nearest vertices, take the one the motion follows
         cand = np.flatnonzero(d <= (math.sqrt(dmin) + 2e-3) ** 2)
         score = TG[j + cand][:, dims] @ motion[k, dims]
-        jj = j + int(cand[np.argmax(score)]) if np.any(score != 0) else j + int(cand[-1] if dmin < 1e-12 else cand[np.argmin(d[cand])])
+        if np.any(score != 0):
+            jj = j + int(cand[np.argmax(score)])
+        elif dmin < 1e-12:
+            # at rest on a vertex: before the first motion, the program's start (a closed contour
+            # ends there too); later (a junction, the end), the vertex furthest along
+            jj = j + int(cand[0] if k < first_move else cand[-1])
+        else:
+            jj = j + int(cand[np.argmin(d[cand])])
         j = min(jj, j + int(np.argmin(d)))
         owner[k], path_s[k] = T[jj], S[jj]
     moving = np.flatnonzero(np.any(np.abs(np.diff(P, axis=0)) > 0, axis=1))
