@@ -348,3 +348,14 @@ def test_controller_setpoints_at_rest_before_a_closed_contour_belong_to_its_star
     assert np.all(ic.block_of_sample[rest] == 0)
     assert np.all(ic.path_s[rest] == 0.0)
     assert np.all(ic.block_of_sample[-10:] == 3) and ic.path_s[-1] == pytest.approx(40.0)
+
+
+def test_program_end_and_subprogram_calls():
+    """M30 ends the program (a Fanuc subprogram after it was read as motion); M98 / M99 were
+    passed over like any M word, silently dropping the subprogram's motion."""
+    p = parse_program("G1 X10 F600\nM30\nO1000\nG1 X100 Y100\nM99\n")
+    assert len(p.blocks) == 1 and p.blocks[-1].end.tolist() == [10, 0, 0]
+    assert (4, "not run: after M30") in p.ignored
+    for text in ("G1 X10 F600\nM98 P1000\n", "G1 X10 F600\nM99\n"):
+        with pytest.raises(InputError, match="row 2.*subprogram"):
+            parse_program(text)

@@ -23,6 +23,9 @@ What is read
 * ``N`` line numbers, ``O`` program numbers, ``%`` lines, ``( ... )`` and ``;`` comments.
 * passed over and listed (they do not move the axes): ``S M T H D`` words and the G codes
   ``G40 G49 G54-G59 G61 G64 G80`` (offsets and modes that do not change the programmed path).
+* ``M2`` / ``M30`` end the program: lines after them are listed as not run, not read (a CNC
+  stops there; Fanuc-style subprograms often follow). ``M98`` / ``M99`` (subprogram call /
+  return) stop with an error: their motion would be missing.
 Anything else (another G code, ``A B C U V W`` axes, parameters ``#``, expressions) stops with
 an :class:`~fdid_fmi.errors.InputError` naming the file and line.
 
@@ -242,6 +245,7 @@ def parse_program(text, source="<string>", start=(0.0, 0.0, 0.0)):
     st = {"motion": None, "plane": 17, "units": "mm", "distance": 90, "arc distance": 91.1,
           "feed mode": 94, "feed": None, "f_word": None}
     blocks, ignored = [], []
+    ended = None
     lines = text_lines(text)
     for row, raw in enumerate(lines, 1):
         line = raw.strip()
@@ -253,10 +257,21 @@ def parse_program(text, source="<string>", start=(0.0, 0.0, 0.0)):
         words = tokenize(code, source, row)
         if not words:
             continue
+        if ended:
+            ignored.append((row, f"not run: after {ended}"))
+            continue
+        ms = [(round(v, 1), txt) for letter, v, txt in words if letter == "M"]
+        calls = [txt for m, txt in ms if m in (98, 99)]
+        if calls:
+            raise _err(f"'{calls[0]}' (subprogram call / return) is not supported: expand the "
+                       "subprogram into the program", source, row)
         b = _block(words, st, pos, source, row, raw, len(blocks), ignored)
         if b is not None:
             blocks.append(b)
             pos = b.end.copy()
+        ends = [txt for m, txt in ms if m in (2, 30)]
+        if ends:
+            ended = ends[0]                  # program end: a CNC runs nothing after it
     return Program(blocks=blocks, start=np.asarray(start, float), ignored=ignored, source=source,
                    lines=lines)
 
