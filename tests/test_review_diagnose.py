@@ -53,10 +53,42 @@ def test_diagnose_refuses_a_command_that_never_moves(small):
                               source="still.csv")
     # before: every detector saw nothing, and on a still held-out trace rounding noise (1e-9 µm)
     # decided what was kept
-    with pytest.raises(InputError, match=r"still.csv, column 'x.cmd'.*never moves in the held-out trace"):
+    with pytest.raises(InputError, match=r"still.csv, column 'x.cmd'.*axis x never moves in the held-out trace"):
         diagnose(model, tr, still, maxiter=2, max_steps=1)
     with pytest.raises(InputError, match=r"never moves in the training trace"):
         diagnose(model, still, va, maxiter=2, max_steps=1)
+
+
+def test_a_residual_of_rounding_noise_shows_no_gain():
+    from fdid_fmi.diagnose.loop import _gain
+    # the held-out residual of an axis standing exactly at its command, before and after a refit
+    # (measured: a delay was kept on these figures, "99.9 %" better)
+    g = _gain({"x": {"rms_um": 7.6e-9}}, {"x": {"rms_um": 5.3e-12}})
+    assert abs(g["x"]) < 0.01
+    assert _gain({"x": {"rms_um": 7.6e-9}}, {"x": {"rms_um": 1.0}})["x"] < -1     # a real loss stays one
+    assert _gain({"x": {"rms_um": 0.4}}, {"x": {"rms_um": 0.3}})["x"] == 1.0 - 0.3 / 0.4   # as before
+
+
+def test_a_combined_block_whose_axis_never_moves_in_training_is_left_with_a_note(small):
+    model, tr, _ = small
+    my = DriveModel.from_dict(_renamed(model.to_dict(), "x", "y"))
+    both = DriveModel.combine([model, my], method="pole-search")
+    n = tr.n
+    cmd, act = tr.cmd("x"), tr.act("x")
+    train = Trace.from_arrays(tr.t, {"x": {"cmd": cmd, "act": act}, "y": {"cmd": np.full(n, 3.0),
+                                                                          "act": np.full(n, 3.0)}}, source="ystill")
+    val = Trace.from_arrays(tr.t, {"x": {"cmd": cmd, "act": act}, "y": {"cmd": cmd, "act": act}}, source="both")
+    d = diagnose(both, train, val, detectors=["coupling"], maxiter=2, max_steps=1)
+    assert d.axes["y"].rounds == [] and d.axes["y"].final is d.axes["y"].model
+    assert any(n.kind.value == "not_checked" and n.axis == "y" and "never moves in the training trace" in n.text
+               for n in d.notes)
+    assert len(d.axes["x"].rounds) == 1                 # the other axis was diagnosed
+
+
+def _renamed(d, a, b):
+    import json
+    return json.loads(json.dumps(d).replace(f'"{a}_', f'"{b}_').replace(f'"axis": "{a}"', f'"axis": "{b}"')
+                      .replace(f'"{a}"', f'"{b}"'))
 
 
 @pytest.mark.parametrize("kw, match", [
@@ -107,4 +139,67 @@ def test_the_untouched_record_still_gives_a_recipe(small):
     rec = ag.recipe_from_model(model)
     assert rec.order == len(model.poles)
 
+
+# ------------------------------------------------------------------ detectors that cannot run
+def _context(model, trace):
+    return Context(model=model, recipe=ag.recipe_from_model(model),
+                   train=ag.model_velocity_traces(model, [trace]), res=[residuals(model, trace)],
+                   settings={"maxiter": 2})
+
+
+def test_too_few_moves_is_not_checked_rather_than_nothing_found(small):
+    model, _, _ = small
+    Ts = model.Ts
+    t = np.arange(1500) * Ts
+    tm = np.clip(t - 0.1, 0.0, 1.0)
+    cmd = 20 * (tm - np.sin(2 * np.pi * tm) / (2 * np.pi))          # one move, rest to rest
+    tr = Trace.from_arrays(t, {"x": {"cmd": cmd, "act": _first_order(cmd, Ts)}}, source="one_move")
+    cands = {c.kind: c for c in friction.detect(_context(model, tr))}
+    asym = cands["asymmetric_friction"]
+    assert "1 move(s)" in asym.not_checked and not asym.detected
+    assert asym.summary()["not_checked"] == asym.not_checked
+    assert not cands["stribeck"].not_checked         # it had its windows: it ran
+    notes = limits.not_checked(cands.values())
+    assert [(n.kind.value, n.effect) for n in notes] == [("not_checked", "asymmetric_friction")]
+    assert "was not checked" in notes[0].text
+
+
+def test_no_command_energy_in_the_mode_band_is_not_checked(small):
+    model, _, _ = small
+    Ts = model.Ts
+    t = np.arange(3000) * Ts
+    cmd = 2.0 ** -7 * np.arange(3000)               # constant velocity, exactly: no acceleration at all
+    tr = Trace.from_arrays(t, {"x": {"cmd": cmd, "act": _first_order(cmd, Ts)}}, source="ramp")
+    (c,) = mode.detect(_context(model, tr))
+    # before: with no command energy anywhere every bin passed the relative energy test (0 >= 0),
+    # none was coherent, and the statistic 0 read as "no mode"
+    assert c.evidence["analysed_bins"] == 0
+    assert "no energy between 8 Hz" in c.not_checked and not c.detected
+
+
+def test_no_constant_velocity_is_not_checked_for_the_periodic_force(small):
+    model, _, _ = small
+    Ts = model.Ts
+    t = np.arange(3000) * Ts
+    cmd = 5 * (1 - np.cos(2 * np.pi * 0.5 * t))                      # never at constant velocity
+    tr = Trace.from_arrays(t, {"x": {"cmd": cmd, "act": _first_order(cmd, Ts)}}, source="slow")
+    (c,) = periodic.detect(_context(model, tr))
+    assert "constant-velocity" in c.not_checked and not c.detected
+
+
+def test_diagnose_reports_the_detector_that_could_not_run(small):
+    model, _, _ = small
+    Ts = model.Ts
+    t = np.arange(1500) * Ts
+    tm = np.clip(t - 0.1, 0.0, 1.0)
+    cmd = 20 * (tm - np.sin(2 * np.pi * tm) / (2 * np.pi))
+    tr = Trace.from_arrays(t, {"x": {"cmd": cmd, "act": _first_order(cmd, Ts)}}, source="one_move")
+    va = Trace.from_arrays(t, {"x": {"cmd": cmd, "act": _first_order(cmd, Ts, seed=5)}}, source="one_move_val")
+    d = diagnose(model, tr, va, detectors=["friction"], maxiter=2, max_steps=1)
+    kinds = [(n["kind"], n["effect"]) for n in d.to_json()["notes"]]
+    assert ("not_checked", "asymmetric_friction") in kinds
+    from fdid_fmi.diagnose.reporting import diagnosis_report
+    html = diagnosis_report(d).html()
+    assert "Note (not checked): axis x: asymmetric friction was not checked" in html
+    assert "not checked: the training trace has 1 move(s)" in html     # the candidates table
 

@@ -40,6 +40,9 @@ class Candidate:
     plot : data for a figure of the evidence (dict of arrays), optional
     reference : Recipe, optional -- what the effect must beat besides the current model (e.g. a
            tool-side output without the backlash feature: the output alone is not backlash)
+    not_checked : why the detector could not test for the effect on these data ('' when it
+           could); such a candidate is never detected, and the diagnosis reports it as a note
+           (``not_checked``, :mod:`.limits`) instead of "nothing found"
     """
 
     kind: str
@@ -53,15 +56,19 @@ class Candidate:
     plot: dict = field(default_factory=dict)
     note: str = ""
     reference: object = None
+    not_checked: str = ""
 
     @property
     def detected(self):
-        return bool(np.isfinite(self.statistic) and self.statistic >= self.threshold)
+        return bool(not self.not_checked and np.isfinite(self.statistic) and self.statistic >= self.threshold)
 
     def summary(self):
-        return {"kind": self.kind, "axis": self.axis, "statistic": float(self.statistic),
-                "threshold": float(self.threshold), "detected": self.detected,
-                "params": self.params, "evidence": self.evidence, "note": self.note}
+        d = {"kind": self.kind, "axis": self.axis, "statistic": float(self.statistic),
+             "threshold": float(self.threshold), "detected": self.detected,
+             "params": self.params, "evidence": self.evidence, "note": self.note}
+        if self.not_checked:
+            d["not_checked"] = self.not_checked
+        return d
 
 
 @dataclass

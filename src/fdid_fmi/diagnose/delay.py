@@ -95,6 +95,10 @@ def detect(ctx):
                                    "xcorr_peak": rho, "best_shift_on_range_edge": edge},
                          plot={"shift": np.arange(kmax + 1), "objective": np.where(np.isfinite(J), J, np.nan)}, search="wide",
                          note="training free-run RMS without / with the best command shift")
+        if not np.isfinite(J[0]):
+            cand.not_checked = "the model could not be refitted without a shift (no feasible model)"
+        elif not np.isfinite(J[1:]).any():
+            cand.not_checked = "the model could not be refitted with any shift of the command (no feasible model)"
         if cand.detected:
             cand.recipe = ag.add_delay(ctx.recipe, a, k_star)
             # one sample of delay is what separates the hold and quadratic same-sample forms of a

@@ -52,6 +52,7 @@ WINDOW_S = 0.04
 STRIBECK_RATIO = 2.6
 ASYM_T = 4.0
 BACKLASH_T = 8.0
+MIN_MOVES = 3           # moves the t statistics need
 
 
 def _windows(events, n, w):
@@ -106,6 +107,9 @@ def _detect_axis(ctx, a):
     cand = Candidate("stribeck", a, ratio, STRIBECK_RATIO,
                      evidence={"window_s": WINDOW_S, "events": len(means_even)},
                      note="residual energy in the 40 ms after motion starts/stops over the rest")
+    if not any(_has_windows(res.axes[a], Ts, w) for res in ctx.res):
+        cand.not_checked = ("the training trace has no motion start or stop with samples both in and "
+                            "after the 40 ms window that follows it")
     if cand.detected:
         cand.params["v_s_mm_s"] = _best_vs(ctx, a)
         cand.recipe = ag.add_stribeck(ctx.recipe, a, cand.params["v_s_mm_s"])
@@ -116,6 +120,8 @@ def _detect_axis(ctx, a):
     cand = Candidate("asymmetric_friction", a, abs(t_even), ASYM_T,
                      params={"mean_offset_um": float(np.mean(me) * 1e3) if me.size else 0.0},
                      note="|t| of the direction-independent mean residual over moves")
+    if me.size < MIN_MOVES:
+        cand.not_checked = f"the training trace has {me.size} move(s); the t statistic needs {MIN_MOVES}"
     if cand.detected and ctx.model.input_index("friction", a) is not None:
         cand.recipe = ag.add_asymmetry(ctx.recipe, a)
     elif cand.detected:
@@ -129,6 +135,8 @@ def _detect_axis(ctx, a):
         cand = Candidate("backlash", a, abs(t_tool), BACKLASH_T, params={"backlash_mm": b}, search="locked",
                          evidence={"moves": int(tm.size)},
                          note="|t| of the direction-aligned tool-side offset over moves")
+        if tm.size < MIN_MOVES:
+            cand.not_checked = f"the training trace has {tm.size} move(s); the t statistic needs {MIN_MOVES}"
         if cand.detected:
             vt = ctx.recipe.v_tilde.get(a, 1.0)
             cand.recipe = ag.add_backlash(ctx.recipe, a, vt)
@@ -150,9 +158,16 @@ def _moves(ev, moving, w, n):
     return out
 
 
+def _has_windows(ar, Ts, w):
+    """The Stribeck statistic has something to compare on this axis's residual: samples in and
+    outside the windows after motion starts / stops."""
+    win = _windows(motion_events(ar.cmd, Ts), ar.residual.size, w)
+    return bool(win.any() and (~win).any())
+
+
 def _t(x):
     x = np.asarray(x, float)
-    if x.size < 3:
+    if x.size < MIN_MOVES:
         return 0.0
     sd = float(np.std(x, ddof=1))
     return float(np.mean(x) / (sd / np.sqrt(x.size))) if sd > 0 else 0.0

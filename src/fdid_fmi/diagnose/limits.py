@@ -17,6 +17,10 @@ effect's; the user should hear so instead of silence:
                     was kept: lost motion (or another reversal effect the friction model lacks) is
                     suspected, and without a tool-side channel it cannot be identified.
 
+``not_checked``     a detector could not test for its effect on these data (too few moves, no
+                    command energy in its band, too little constant-velocity motion, no
+                    feasible refit): the effect was not looked for, which is not "nothing found".
+
 ``order_too_low``   the model as given, refitted with one more real pole (:mod:`.order`),
                     predicts the held-out data better by the keep criterion and the training
                     data no worse: the structure is not adequate, and a residual it leaves is
@@ -46,6 +50,7 @@ class NoteKind(str, Enum):
     NOT_OBSERVABLE = "not_observable"
     SUSPECTED = "suspected"
     ORDER_TOO_LOW = "order_too_low"
+    NOT_CHECKED = "not_checked"
 
 
 @dataclass
@@ -118,3 +123,15 @@ def order_too_low(axis, gain, min_gain):
                 f"(criterion {100 * min_gain:g} %): the model's order is too low for these data; "
                 "identify with the default structure choice (fdid identify without structure "
                 "flags) or a higher order", gain, min_gain)
+
+
+def not_checked(candidates):
+    """Notes for the candidates (:class:`.base.Candidate`) whose detector could not run on the
+    data (``Candidate.not_checked``), one per effect kind and axis."""
+    notes, seen = [], set()
+    for c in candidates:
+        if c.not_checked and (c.kind, c.axis) not in seen:
+            seen.add((c.kind, c.axis))
+            notes.append(Note(NoteKind.NOT_CHECKED, c.axis, c.kind,
+                              f"axis {c.axis}: {c.kind.replace('_', ' ')} was not checked: {c.not_checked}"))
+    return notes

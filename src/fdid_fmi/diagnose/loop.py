@@ -49,7 +49,7 @@ from ..model import DriveModel
 from . import augment as ag
 from . import coupling, delay, friction, mode, order, periodic, whiteness
 from .base import Context, command_velocity, implausible
-from .limits import data_limits, order_too_low
+from .limits import Note, NoteKind, data_limits, not_checked, order_too_low
 from .residuals import Residuals, residuals, split_halves
 
 DETECTORS = {"friction": friction, "mode": mode, "delay": delay, "periodic": periodic,
@@ -160,10 +160,19 @@ def _already(recipe, cand):
     return False
 
 
+RMS_FLOOR_UM = 1e-6     # a reference RMS below this is rounding, not a residual (1 pm)
+
+
 def _gain(ref, new):
-    """Relative RMS reduction per channel (positive = better)."""
-    return {ch: 1.0 - new[ch]["rms_um"] / ref[ch]["rms_um"] if ref[ch]["rms_um"] > 0 else 0.0
-            for ch in ref if ch in new}
+    """Relative RMS reduction per channel (positive = better). Below ``RMS_FLOOR_UM`` the
+    reduction is taken relative to the floor: a residual of rounding noise (a held-out axis that
+    stands still, exactly at its command) cannot show a gain of 99 %."""
+    out = {}
+    for ch in ref:
+        if ch in new:
+            r, n = ref[ch]["rms_um"], new[ch]["rms_um"]
+            out[ch] = 1.0 - n / r if r >= RMS_FLOOR_UM else (r - n) / RMS_FLOOR_UM
+    return out
 
 
 def _better(a, b):
@@ -281,9 +290,15 @@ def _combined(model, blocks, train, val, split, kw, say, t0):
     for b in blocks:
         ax = b.axes[0] if b.axes else b.outputs[0].axis
         own = {p.name for p in b.inputs} | {p.name for p in b.outputs}
+        if _still(b.axes, train):
+            say(f"axis {ax}: its command never moves in the training trace; its block is left as it is")
+            subs[ax] = _left_as_is(b, train, val, kw, split, Note(
+                NoteKind.NOT_CHECKED, ax, "diagnosis", f"axis {ax}: not diagnosed: its commanded position "
+                "never moves in the training trace; its block is left as it is"))
+            continue
         say(f"axis {ax}: diagnosing its block")
         subs[ax] = diagnose(b, train, val, progress=lambda m, ax=ax: say(f"axis {ax}: {m}"),
-                            _reserved=names - own, **kw)
+                            _reserved=names - own, _block=True, **kw)
     changed = any(d.final is not d.model for d in subs.values())
     if changed:
         final = DriveModel.combine([d.final for d in subs.values()],
@@ -351,6 +366,24 @@ def _options(min_gain, max_loss, max_steps, maxiter, max_delay, detectors, exclu
             names(exclude, "exclude") or [])
 
 
+def _still(axes, trace):
+    """Axes whose commanded position never moves in ``trace``."""
+    return [a for a in axes if trace.has(a, "cmd") and not np.ptp(np.asarray(trace.cmd(a), float)) > 0]
+
+
+def _left_as_is(model, train, val, kw, split, note):
+    """The Diagnosis of a block that is not diagnosed (its command never moves in the training
+    trace): its residual tables and tests, no round, and the note saying why."""
+    res0 = {"train": residuals(model, train), "val": residuals(model, val)}
+    d = Diagnosis(model=model, final=model, train=train, val=val, split=split,
+                  settings={**kw, "exclude": list(kw.get("exclude") or [])})
+    d.before = d.after = {k: r.table() for k, r in res0.items()}
+    d.residual_before = d.residual_after = res0
+    d.tests_before = d.tests_after = {k: _tests(r) for k, r in res0.items()}
+    d.notes = [note]
+    return d
+
+
 def _order_check(recipe, vel_train, train, val, maxiter):
     """Residual tables of the refit with one more real pole, or {"error": why} when it cannot be
     fitted."""
@@ -362,7 +395,8 @@ def _order_check(recipe, vel_train, train, val, maxiter):
 
 
 def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, max_loss=0.01,
-             max_steps=4, maxiter=25, exclude=(), max_delay=6, progress=None, _reserved=()) -> Diagnosis:
+             max_steps=4, maxiter=25, exclude=(), max_delay=6, progress=None, _reserved=(),
+             _block=False) -> Diagnosis:
     """Find what the residual says the model lacks, add it, and report the error before and after.
 
     Parameters
@@ -391,7 +425,10 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     ------
     InputError
         The model (or a block of it) is not a pole-search / MIMO model (quasi-static, Full LS:
-        no ``identification["structure"]``), a trace does not fit it, or an option is invalid.
+        no ``identification["structure"]``), a trace does not fit it, no command of its
+        axes moves in a trace, or an option is invalid. (A block of a combined model whose
+        command never moves in the training trace is left as it is; a ``not_checked`` note says
+        so.)
     """
     t0 = time.perf_counter()
     say = progress or (lambda msg: None)
@@ -405,16 +442,10 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     if val is None:
         train, val = split_halves(train)
         split = "no held-out trace given: first half fitted, second half held out"
-    for tr, what in ((train, "training"), (val, "held-out")):
+    for tr in (train, val):
         if abs(tr.Ts - model.Ts) > 1e-3 * model.Ts:
             raise InputError(f"trace sampled at {tr.Ts:g} s, model at {model.Ts:g} s", source=tr.source,
                              column="Ts")
-        for a in model.axes:
-            if tr.has(a, "cmd") and not np.ptp(np.asarray(tr.cmd(a), float)) > 0:
-                # nothing to fit or judge: every detector would see no motion, and a residual of
-                # rounding noise would decide what is kept
-                raise InputError(f"the commanded position of axis '{a}' never moves in the {what} trace; "
-                                 "diagnosis needs moves", source=tr.source, column=f"{a}.cmd")
     names = list(detectors if detectors is not None else DETECTORS)
     for nm in names:
         if nm not in DETECTORS:
@@ -424,6 +455,14 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     blocks = split_blocks(model)
     for b in blocks:                    # refuse a block that cannot be refitted before any work
         ag.recipe_from_model(b)
+    # no command of the model moves: nothing to fit (every detector sees no motion) or to judge
+    # (a residual of rounding noise would decide what is kept). A block of a combined model whose
+    # own command never moves in the training trace is left as it is, with a note (_combined)
+    for tr, what in ((train, "training"), (val, "held-out")):
+        still = _still(model.axes, tr)
+        if not _block and model.axes and len(still) == len(model.axes):
+            raise InputError(f"the commanded position of axis {', '.join(still)} never moves in the {what} "
+                             "trace; diagnosis needs moves", source=tr.source, column=f"{still[0]}.cmd")
     if len(blocks) > 1 or blocks[0] is not model:
         kw = dict(detectors=names, min_gain=min_gain, max_loss=max_loss, max_steps=max_steps,
                   maxiter=maxiter, exclude=exclude, max_delay=max_delay)
@@ -436,7 +475,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     diag.residual_before = res0
     diag.tests_before = {k: _tests(r) for k, r in res0.items()}
     res_cur = res0
-    order_notes = []
+    order_notes, unchecked = [], []
     for step in range(max_steps):
         tab_cur = {k: r.table() for k, r in res_cur.items()}
         vel_train = ag.model_velocity_traces(current, [train])
@@ -450,6 +489,8 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         rnd = {"round": step + 1, "candidates": [c.summary() for c in cands], "trials": [],
                "plots": {f"{c.kind}|{c.axis}": c.plot for c in cands if c.plot}}
         diag.rounds.append(rnd)
+        if step == 0:           # a detector that could not run says so (not "nothing found")
+            unchecked = not_checked(cands)
         if not detected:
             say(f"round {step + 1}: nothing detected")
             break
@@ -549,6 +590,6 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     tool_axes = {a for a, ar in res0["train"].axes.items() if ar.tool_residual is not None}
     conc = ({a: friction.concentration([res_cur["train"]], a, model.Ts) for a in model.axes}
             if "friction" in names else {})
-    diag.notes = order_notes + data_limits(model.axes, tool_axes, conc, diag.effects_added)
+    diag.notes = order_notes + unchecked + data_limits(model.axes, tool_axes, conc, diag.effects_added)
     diag.wall_time_s = time.perf_counter() - t0
     return diag

@@ -62,7 +62,7 @@ def detect(ctx):
         k = max(3, int(round(MEDIAN_HZ / df)))
         logH = np.log(np.maximum(H, 1e-300))
         bg = median_filter(logH, size=2 * k + 1, mode="nearest")
-        band = (f >= F_LO) & (f <= 0.4 / ctx.Ts) & (Paa >= 1e-4 * np.max(Paa))
+        band = (f >= F_LO) & (f <= 0.4 / ctx.Ts) & (Paa >= 1e-4 * np.max(Paa)) & (Paa > 0)
         coherent = band & (coh >= MIN_COHERENCE)
         frac = float(coherent.sum() / max(band.sum(), 1))
         ratio, fpk = 0.0, float("nan")
@@ -82,6 +82,10 @@ def detect(ctx):
                          plot={"f_hz": f, "H": H, "background": np.exp(bg), "coherence": coh},
                          note="fraction of the command band where the residual is coherent with the "
                               "commanded acceleration; peak of |residual / acceleration|")
+        if not band.any():
+            cand.not_checked = (f"the command has no energy between {F_LO:g} Hz and 0.4 / Ts "
+                                f"({0.4 / ctx.Ts:g} Hz) at the spectral resolution of this trace "
+                                f"({df:.3g} Hz)")
         if cand.detected and np.isfinite(fpk):
             cand.recipe = ag.add_mode(ctx.recipe, a, fpk)
         out.append(cand)

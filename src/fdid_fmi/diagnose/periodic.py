@@ -103,8 +103,9 @@ def detect(ctx):
                 pairs.append((ar.measured[i:j], ar.residual[i:j]))
         kap, P, dx = position_spectrum(pairs)
         if kap.size < 8:
-            out.append(Candidate("periodic_position", a, 0.0, PEAK_RATIO,
-                                 note="too little constant-velocity motion for a position spectrum"))
+            why = "too little constant-velocity motion for a position spectrum"
+            out.append(Candidate("periodic_position", a, 0.0, PEAK_RATIO, note=why,
+                                 evidence={"segments": len(pairs)}, not_checked=f"the training trace has {why}"))
             continue
         bg = median_filter(P, size=max(9, kap.size // 8) | 1, mode="nearest")
         rel = P / np.maximum(bg, 1e-300)

@@ -188,11 +188,12 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
             gv = trial.get("gain_val", {})
             rows.append({"round": rnd["round"], "kind": c["kind"], "axis": c["axis"],
                          "statistic": c["statistic"], "threshold": c["threshold"],
-                         "detected": "yes" if c["detected"] else "no",
+                         "detected": ("not checked" if c.get("not_checked") else
+                                      "yes" if c["detected"] else "no"),
                          "held-out gain": ", ".join(f"{k}: {100 * v:+.1f} %" for k, v in gv.items()) or "–",
                          "kept": "yes" if trial.get("kept") else ("implausible: " + trial["implausible"]
                                                                   if trial.get("implausible") else "no"),
-                         "note": c["note"]})
+                         "note": c["note"] + (f" (not checked: {c['not_checked']})" if c.get("not_checked") else "")})
         rep.add_table(f"{rnd['axis']}_round{rnd['round']}" if "axis" in rnd else f"round{rnd['round']}",
                       rows, caption=f"axis {rnd['axis']}" if "axis" in rnd else "")
     rep.add_heading("What is left: whiteness and input cross-correlation")
