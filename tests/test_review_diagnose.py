@@ -203,3 +203,55 @@ def test_diagnose_reports_the_detector_that_could_not_run(small):
     assert "Note (not checked): axis x: asymmetric friction was not checked" in html
     assert "not checked: the training trace has 1 move(s)" in html     # the candidates table
 
+
+# ------------------------------------------------------------------ fdid validate
+@pytest.fixture(scope="module")
+def fmu_case(small, tmp_path_factory):
+    from fdid_fmi.fmu import export_fmu
+    model, _, va = small
+    d = tmp_path_factory.mktemp("review_validate")
+    return model, export_fmu(model, d / "small.fmu"), va, d
+
+
+@pytest.mark.parametrize("tol", [float("nan"), -1.0, 0.0, float("inf")])
+def test_validate_refuses_a_tolerance_that_is_not_positive_and_finite(fmu_case, tol):
+    from fdid_fmi.fmu import validate_fmu
+    _, fmu, va, _ = fmu_case
+    # before: NaN and <= 0 failed the FMU ("differ by 1.8e-15 mm (> nan mm)"), inf passed any FMU
+    with pytest.raises(InputError, match="column 'tolerance'.*positive finite"):
+        validate_fmu(fmu, va, tolerance_mm=tol)
+
+
+def _rezip(src, dst, drop=(), replace=None):
+    import zipfile
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w") as zout:
+        for name in zin.namelist():
+            if name not in drop:
+                zout.writestr(name, (replace or {}).get(name, zin.read(name)))
+    return dst
+
+
+def test_validate_names_a_missing_or_damaged_model_description(fmu_case):
+    from fdid_fmi.fmu import validate_fmu
+    model, fmu, va, d = fmu_case
+    no_md = _rezip(fmu, d / "no_md.fmu", drop=("modelDescription.xml",))
+    bad_md = _rezip(fmu, d / "bad_md.fmu", replace={"modelDescription.xml": b"<fmiModelDescription>"})
+    # before: "could not be run through fmpy.simulate_fmu (...); does it have a binary for this platform?"
+    with pytest.raises(InputError, match="no_md.fmu: is not an FMU: the archive has no modelDescription.xml") as e:
+        validate_fmu(no_md, va, model=model)
+    assert "binary" not in str(e.value)
+    with pytest.raises(InputError, match="bad_md.fmu: the FMU's modelDescription.xml cannot be read") as e:
+        validate_fmu(bad_md, va, model=model)
+    assert "binary" not in str(e.value)
+
+
+def test_validate_says_when_the_trace_has_no_measured_position(fmu_case):
+    from fdid_fmi.fmu import validate_fmu
+    _, fmu, va, _ = fmu_case
+    cmd_only = Trace.from_arrays(va.t, {"x": {"cmd": va.cmd("x")}}, source="cmd_only")
+    res = validate_fmu(fmu, cmd_only)
+    assert res.max_abs_diff_reference_mm <= 1e-9       # the FMU was still checked against the reference
+    assert res.axes == {} and res.unmeasured == ["x"]  # before: an empty table and nothing said
+    assert "not computed: the trace has no measured position of axis x" in res.table()
+    assert res.to_dict()["unmeasured"] == ["x"]
+

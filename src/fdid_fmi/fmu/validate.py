@@ -57,6 +57,8 @@ class ValidationResult:
     reference_sensitivity_mm : float or None
         only when the FMU misses the target: how far the reference itself moves when the
         commands are perturbed by 1e-12 mm (a measure of the trace's chaotic sensitivity)
+    unmeasured : list[str]          axes whose measured position the trace lacks: no
+                                    discrepancy to the measurement was computed for them
     """
 
     fmu: str
@@ -71,6 +73,7 @@ class ValidationResult:
     tolerance_mm: float = 1e-9
     start: str = ""
     reference_sensitivity_mm: float | None = None
+    unmeasured: list = field(default_factory=list)
 
     @property
     def ok(self):
@@ -95,6 +98,8 @@ class ValidationResult:
                  "|---|---:|---:|"]
         for a, d in self.axes.items():
             lines.append(f"| {a} | {d['rms_um']:.3f} | {d['max_um']:.3f} |")
+        for a in self.unmeasured:
+            lines.append(f"| {a} | not computed: the trace has no measured position of axis {a} | |")
         if self.contour:
             lines.append(f"| contour {'/'.join(self.contour['axes'])} | {self.contour['rms_um']:.3f} | "
                          f"{self.contour['max_um']:.3f} |")
@@ -322,6 +327,11 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     fmu_path = Path(fmu_path)
     if not fmu_path.is_file():
         raise InputError("FMU file not found", source=str(fmu_path))
+    if isinstance(tolerance_mm, bool) or not isinstance(tolerance_mm, (int, float, np.floating, np.integer)) \
+            or not (np.isfinite(tolerance_mm) and tolerance_mm > 0):
+        # NaN and <= 0 failed every FMU with a meaningless message, inf passed any FMU
+        raise InputError(f"the tolerance must be a positive finite number of mm, got {tolerance_mm!r}",
+                         column="tolerance")
     if not isinstance(trace, Trace):
         raise InputError(f"expected a Trace, got {type(trace).__name__}", column="trace")
     if model is None:
@@ -331,6 +341,7 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     if not isinstance(model, DriveModel):
         raise InputError("the reference model must be a state-space DriveModel", column="model")
     res = ValidationResult(fmu=str(fmu_path), tolerance_mm=tolerance_mm, n_samples=trace.n)
+    _model_description(fmu_path)
     res.problems = [f"fmpy: {p}" for p in fmpy_validate(str(fmu_path))]
     axes = model.axes
     missing = [a for a in axes if not trace.has(a, "cmd")]
@@ -420,6 +431,7 @@ def _against_measurement(res, model, trace, cmds, out):
     sides = {a: model.position_side(a) for a in axes}
     act = {a: np.asarray(measured_position(trace, a, sides[a]), float) for a in axes
            if trace.has(a, "tool" if sides[a] == "tool" else "act")}
+    res.unmeasured = [a for a in axes if a not in act]
     for a, x in act.items():
         d = ((cmds[a] - out[("pos", a)]) - (cmds[a] - x)) * 1e3
         res.axes[a] = {"rms_um": float(np.sqrt(np.mean(d ** 2))), "max_um": float(np.max(np.abs(d)))}
@@ -448,6 +460,22 @@ def _sensitivity(model, trace, start):
     a = simulate(model, trace, start=start)
     b = simulate(model, pert, start=start)
     return float(max(np.max(np.abs(a.axes[x]["position"] - b.axes[x]["position"])) for x in model.axes))
+
+
+def _model_description(fmu_path):
+    """The FMU's model description, or InputError when it is not a zip archive or its
+    modelDescription.xml is missing or unreadable (before fmpy is asked to run it)."""
+    from fmpy import read_model_description
+    try:
+        with zipfile.ZipFile(fmu_path) as zf:
+            if "modelDescription.xml" not in zf.namelist():
+                raise InputError("is not an FMU: the archive has no modelDescription.xml", source=str(fmu_path))
+    except zipfile.BadZipFile:
+        raise InputError("is not an FMU (not a zip archive)", source=str(fmu_path)) from None
+    try:
+        return read_model_description(str(fmu_path), validate=False)
+    except Exception as exc:  # noqa: BLE001 - fmpy / lxml raise plain exceptions on a damaged file
+        raise InputError(f"the FMU's modelDescription.xml cannot be read ({exc})", source=str(fmu_path)) from None
 
 
 def _fmi_version(fmu_path):
