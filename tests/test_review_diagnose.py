@@ -255,3 +255,19 @@ def test_validate_says_when_the_trace_has_no_measured_position(fmu_case):
     assert "not computed: the trace has no measured position of axis x" in res.table()
     assert res.to_dict()["unmeasured"] == ["x"]
 
+
+# ------------------------------------------------------------------ fdid demo
+@pytest.mark.parametrize("seed", ["-1", str(2 ** 32)])
+def test_demo_refuses_a_seed_numpy_cannot_take_before_any_work(capsys, tmp_path, seed):
+    from fdid_fmi.cli import main
+    out = tmp_path / "demo"
+    try:
+        code = main(["demo", "--seed", seed, "--out", str(out)])
+    except SystemExit as exc:           # argparse
+        code = exc.code
+    err = capsys.readouterr().err
+    # before: the traces were generated, then "internal error: ValueError: Seed must be between 0
+    # and 2**32 - 1"
+    assert code == 2 and "--seed must be in 0 .. 4294967295" in err and "internal error" not in err
+    assert len([ln for ln in err.splitlines() if ln.strip()]) == 1
+    assert not out.exists()

@@ -18,6 +18,7 @@ import numpy as np
 from ..metrics import contour_error, rms_max_um
 from ..model import DriveModel, jsonable
 from ..outputs import atomic_write
+from .argtypes import int_in
 
 
 def register(sub):
@@ -28,7 +29,9 @@ def register(sub):
     p.add_argument("--emps", action="store_true",
                    help="use the real EMPS data (../shared/data/emps) instead of the virtual drive")
     p.add_argument("--data", default=None, help="folder with DATA_EMPS.mat / DATA_EMPS_PULSES.mat")
-    p.add_argument("--seed", type=int, default=0)
+    # the search's seed (scipy / numpy legacy): 0 .. 2**32 - 1
+    p.add_argument("--seed", type=int_in(0, 2 ** 32 - 1, "--seed"), default=0,
+                   help="random seed of the generated traces and the search (default 0)")
     p.set_defaults(func=run)
 
 
