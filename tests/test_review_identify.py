@@ -203,3 +203,16 @@ def test_stuck_axis_names_the_measured_position_not_the_bounds(capsys, tmp_path,
     code, _, err = run(capsys, "identify", csv, "--same-sample", "hold", "--maxiter", "2", "--jobs", "1",
                        "-o", tmp_path / "m.json")
     assert one_line(code, err, "never moves").count("never moves") == 1
+
+
+def test_absurd_fixed_v_tilde_is_not_blamed_on_a_column_of_the_trace(capsys, tmp_path, trace):
+    # --v-tilde 1e308: a friction regressor of 1e-306 unscaled into infinite numerators; the
+    # model check then said "run.csv, column 'C': contains NaN or inf" (no such column)
+    csv = write_csv(tmp_path / "run.csv", trace)
+    with warnings.catch_warnings():       # an overflow warning was a second stderr line
+        warnings.simplefilter("error", RuntimeWarning)
+        code, _, err = run(capsys, "identify", csv, "--structure", "rigid", "--same-sample", "hold",
+                           "--maxiter", "2", "--v-tilde", "1e308", "-o", tmp_path / "m.json")
+    line = one_line(code, err, "no usable model", "v_tilde")
+    assert "column 'C'" not in line
+    assert not (tmp_path / "m.json").exists()

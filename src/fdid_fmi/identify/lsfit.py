@@ -254,7 +254,8 @@ class LSProblem:
                 sse = max(float(self.zz[j] - 2 * full @ MZ[:, j] + full @ G @ full), 0.0)
             rms[j] = np.sqrt(sse / self.N)
             total += sse / self.Wz[j] ** 2
-            coef = full / r                                   # Eqn 5.12
+            with np.errstate(over="ignore"):                  # inf: refused below
+                coef = full / r                               # Eqn 5.12
             for i, ins in enumerate(self.s.inputs):
                 bb = np.zeros(self.n + 1)
                 for l in range(self.n + 1):
@@ -263,6 +264,9 @@ class LSProblem:
                                           any(fi == i and fl == l for fi, fl, _ in self.fixed[j])):
                         bb[l] = coef[k]
                 b[(o.name, ins.name)] = bb
+        if not (np.all(np.isfinite(rms)) and all(np.all(np.isfinite(v)) for v in b.values())):
+            # e.g. v_tilde = 1e308 mm/s: a friction regressor of 1e-306 unscaled into inf numerators
+            return (unusable, None) if want_residuals else unusable
         for (oname, iname), sign in self.s.friction_sign.items():
             allow = self.allow[(oname, iname)]
             if allow.any():
