@@ -216,3 +216,15 @@ def test_absurd_fixed_v_tilde_is_not_blamed_on_a_column_of_the_trace(capsys, tmp
     line = one_line(code, err, "no usable model", "v_tilde")
     assert "column 'C'" not in line
     assert not (tmp_path / "m.json").exists()
+
+
+# ----------------------------------------------------------------------------- mimo outputs
+@pytest.mark.parametrize("outputs", ["velocity", "acceleration"])
+def test_outputs_without_a_position_are_one_line(capsys, tmp_path, trace, outputs):
+    # the search ran, then assembling the model raised StopIteration (no position to derive the
+    # error from): "internal error"
+    csv = write_csv(tmp_path / "run.csv", trace)
+    code, _, err = run(capsys, "identify", csv, "--method", "mimo", "--same-sample", "hold", "--maxiter", "2",
+                       "--outputs", outputs, "-o", tmp_path / "m.json")
+    one_line(code, err, "column 'outputs'", f"({outputs}) predict no position")
+    assert not (tmp_path / "m.json").exists()

@@ -236,6 +236,12 @@ class Structure:
         for key in list(self.mask) + list(self.dc_gain):
             if key[0] not in onames or key[1] not in names:
                 raise InputError(f"({key[0]}, {key[1]}) names an unknown output or input", column="mask")
+        for ax in self.axes:    # the model's position and error are derived from one of these
+            kinds = [o.predicts for o in self.outputs if o.axis == ax]
+            if not set(kinds) & {"error", "position", "tool_position", "tool_error"}:
+                raise InputError(f"the outputs of axis '{ax}' ({', '.join(kinds) or 'none'}) predict no "
+                                 f"position; add error, position, tool_position or tool_error (or "
+                                 f"acceleration with 2 integrators)", column="outputs")
 
 
 def default_bounds(Ts, n_real, n_complex, zeta=(0.05, 2.0), lowest_hz=0.1):
