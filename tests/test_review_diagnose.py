@@ -271,3 +271,17 @@ def test_demo_refuses_a_seed_numpy_cannot_take_before_any_work(capsys, tmp_path,
     assert code == 2 and "--seed must be in 0 .. 4294967295" in err and "internal error" not in err
     assert len([ln for ln in err.splitlines() if ln.strip()]) == 1
     assert not out.exists()
+
+
+def test_validate_names_an_fmu_that_is_not_of_the_reference_model(fmu_case):
+    import json
+    from fdid_fmi.fmu import export_fmu, validate_fmu
+    model, _, va, d = fmu_case
+    other = export_fmu(DriveModel.from_dict(json.loads(json.dumps(model.to_dict()).replace('"x_', '"y_')
+                                                       .replace('"axis": "x"', '"axis": "y"')
+                                                       .replace('"x"', '"y"'))), d / "y_axis.fmu")
+    # before: "could not be run through fmpy.simulate_fmu (no field of name x_x); does it have a
+    # binary for this platform?"
+    with pytest.raises(InputError, match="y_axis.fmu: the FMU has no variable.*'x_x_cmd'.*not exported from this model") as e:
+        validate_fmu(other, va, model=model)
+    assert "binary" not in str(e.value)

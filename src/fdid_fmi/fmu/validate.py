@@ -341,7 +341,7 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     if not isinstance(model, DriveModel):
         raise InputError("the reference model must be a state-space DriveModel", column="model")
     res = ValidationResult(fmu=str(fmu_path), tolerance_mm=tolerance_mm, n_samples=trace.n)
-    _model_description(fmu_path)
+    md = _model_description(fmu_path)
     res.problems = [f"fmpy: {p}" for p in fmpy_validate(str(fmu_path))]
     axes = model.axes
     missing = [a for a in axes if not trace.has(a, "cmd")]
@@ -361,6 +361,14 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     ak = {a: k for k, a in enumerate(lay.axes)}
     names = {(role, a): var[(role, ak[a])] for a in axes for role in ("cmd", "pos", "err", "vel", "tool")
              if (role, ak[a]) in var}
+    have = {v.name for v in md.modelVariables}
+    used = list(names.values()) + [var[("v0", ak[a])] for a in axes if ("v0", ak[a]) in var] + [
+        v.name for v in lay.inputs if v.role == "ext"]
+    lacking = [nm for nm in used if nm not in have]
+    if lacking:         # before: fmpy's "no field of name ...", blamed on a missing binary
+        raise InputError(f"the FMU has no variable(s) {lacking} of the reference model: it was not "
+                         "exported from this model (pass the model it was exported from with --model)",
+                         source=str(fmu_path))
     # the same start as the reference: a run-up from rest for records that start accelerating
     # (simulate.run_up, as earlier rows of the table), else the steady ramp at the start velocity
     R, ext_cmds, v0_run = run_up(cmds, Ts) if start == "auto" else (0, cmds, {})
