@@ -228,3 +228,13 @@ def test_outputs_without_a_position_are_one_line(capsys, tmp_path, trace, output
                        "--outputs", outputs, "-o", tmp_path / "m.json")
     one_line(code, err, "column 'outputs'", f"({outputs}) predict no position")
     assert not (tmp_path / "m.json").exists()
+
+
+def test_absurd_dc_gain_value_is_named(capsys, tmp_path, trace):
+    # the error blamed poles, damping or v_tilde, after six overflow warnings on stderr
+    csv = write_csv(tmp_path / "run.csv", trace)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        code, _, err = run(capsys, "identify", csv, "--method", "mimo", "--same-sample", "hold",
+                           "--maxiter", "2", "--dc-gain", "error=3:1e300", "-o", tmp_path / "m.json")
+    one_line(code, err, "no usable model", "d.c.-gain value")

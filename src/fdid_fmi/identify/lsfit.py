@@ -234,36 +234,38 @@ class LSProblem:
         MZ = Ms @ Z.T                                         # (k, p)
         b, rms, feasible, res_all = {}, np.zeros(self.p), True, []
         total = 0.0
-        for j, o in enumerate(self.s.outputs):
-            z_off = np.zeros(len(self.used))
-            for i, l, key in self.fixed[j]:
-                q, value = self.s.dc_gain[key]
-                z_off[self.col_index[(i, l)]] = value * a[-1] * r[self.col_index[(i, l)]]  # Eqn 5.16
-            idx = [self.col_index[c] for c in self.cols[j]]
-            rhs = MZ[:, j] - G @ z_off
-            theta = np.zeros(len(self.used))
-            if idx:
-                Gs = G[np.ix_(idx, idx)]
-                theta[idx] = _solve_normal(Gs, rhs[idx])
-            full = theta + z_off
-            if want_residuals:
-                res = Z[j] - full @ Ms
-                sse = float(res @ res)
-                res_all.append(res)
-            else:
-                sse = max(float(self.zz[j] - 2 * full @ MZ[:, j] + full @ G @ full), 0.0)
-            rms[j] = np.sqrt(sse / self.N)
-            total += sse / self.Wz[j] ** 2
-            with np.errstate(over="ignore"):                  # inf: refused below
-                coef = full / r                               # Eqn 5.12
-            for i, ins in enumerate(self.s.inputs):
-                bb = np.zeros(self.n + 1)
-                for l in range(self.n + 1):
-                    k = self.col_index.get((i, l))
-                    if k is not None and (self.allow[(o.name, ins.name)][l] or
-                                          any(fi == i and fl == l for fi, fl, _ in self.fixed[j])):
-                        bb[l] = coef[k]
-                b[(o.name, ins.name)] = bb
+        # absurd values (a d.c. gain of 1e300, v_tilde of 1e308) overflow here: the non-finite
+        # result is refused below, without a warning line for the user
+        with np.errstate(over="ignore", invalid="ignore"):
+            for j, o in enumerate(self.s.outputs):
+                z_off = np.zeros(len(self.used))
+                for i, l, key in self.fixed[j]:
+                    q, value = self.s.dc_gain[key]
+                    z_off[self.col_index[(i, l)]] = value * a[-1] * r[self.col_index[(i, l)]]  # Eqn 5.16
+                idx = [self.col_index[c] for c in self.cols[j]]
+                rhs = MZ[:, j] - G @ z_off
+                theta = np.zeros(len(self.used))
+                if idx:
+                    Gs = G[np.ix_(idx, idx)]
+                    theta[idx] = _solve_normal(Gs, rhs[idx])
+                full = theta + z_off
+                if want_residuals:
+                    res = Z[j] - full @ Ms
+                    sse = float(res @ res)
+                    res_all.append(res)
+                else:
+                    sse = max(float(self.zz[j] - 2 * full @ MZ[:, j] + full @ G @ full), 0.0)
+                rms[j] = np.sqrt(sse / self.N)
+                total += sse / self.Wz[j] ** 2
+                coef = full / r                                   # Eqn 5.12
+                for i, ins in enumerate(self.s.inputs):
+                    bb = np.zeros(self.n + 1)
+                    for l in range(self.n + 1):
+                        k = self.col_index.get((i, l))
+                        if k is not None and (self.allow[(o.name, ins.name)][l] or
+                                              any(fi == i and fl == l for fi, fl, _ in self.fixed[j])):
+                            bb[l] = coef[k]
+                    b[(o.name, ins.name)] = bb
         if not (np.all(np.isfinite(rms)) and all(np.all(np.isfinite(v)) for v in b.values())):
             # e.g. v_tilde = 1e308 mm/s: a friction regressor of 1e-306 unscaled into inf numerators
             return (unusable, None) if want_residuals else unusable

@@ -180,9 +180,9 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
     if finished[0] is None:
         real, cplx, vt = par.decode(par.canonical(cands[0][1]))
         if not np.all(np.isfinite(prob.project(par.polynomial(real, cplx), vt).rms)):
-            raise InputError("no usable model in the search space: the best candidate's filters are not "
-                             "finite numbers (poles, damping or v_tilde far out of range, e.g. a zeta "
-                             "bound of 1e308); narrow the bounds", source=traces[0].source, column="bounds")
+            raise InputError("no usable model in the search space: the best candidate's filters or numerators are not "
+                             "finite numbers (poles, damping, v_tilde or a d.c.-gain value far out of "
+                             "range, e.g. a zeta bound of 1e308); narrow the bounds", source=traces[0].source, column="bounds")
         raise InputError("no feasible model in the search space (every candidate had a friction gain "
                          "of the wrong sign); widen the bounds or check the friction structure",
                          source=traces[0].source, column="bounds")
