@@ -359,3 +359,25 @@ def test_program_end_and_subprogram_calls():
     for text in ("G1 X10 F600\nM98 P1000\n", "G1 X10 F600\nM99\n"):
         with pytest.raises(InputError, match="row 2.*subprogram"):
             parse_program(text)
+
+
+def test_optimiser_settings_are_checked():
+    """rel_tol = 0 never ended its bisections (the run hung), min_override = 0 divided by zero."""
+    import signal
+    from fdid_fmi.plan.optimize import optimize_feeds
+
+    def hung(*_):
+        raise TimeoutError("optimize_feeds did not return")
+
+    prog = parse_program("G1 X10 F3000\nG3 X10 Y0 I-10\n")
+    model = _lag(math.exp(-30.0 * TS_C))
+    old = signal.signal(signal.SIGALRM, hung)
+    signal.alarm(20)
+    try:
+        with pytest.raises(InputError, match="rel_tol"):
+            optimize_feeds(prog, LIM_C, TS_C, 0.05, model=model, rel_tol=0.0)
+        with pytest.raises(InputError, match="min_override"):
+            optimize_feeds(prog, LIM_C, TS_C, 0.05, model=model, min_override=0.0)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)

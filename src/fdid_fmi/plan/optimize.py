@@ -222,6 +222,10 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
         raise InputError(f"--tol must be > 0, got {tol_mm!r}", column="--tol")
     if not 0 <= margin < 1:
         raise InputError(f"--margin must be in [0, 1), got {margin!r}", column="--margin")
+    if not (0 < rel_tol and math.isfinite(rel_tol)):        # 0: the bisections never ended
+        raise InputError(f"rel_tol must be a finite number > 0, got {rel_tol!r}", column="rel_tol")
+    if not 0 < min_override <= 1:                           # 0: a division by zero
+        raise InputError(f"min_override must be in (0, 1], got {min_override!r}", column="min_override")
     target = tol_mm * (1.0 - margin)
     if model is None and fmu is None:
         raise InputError("give a model or an FMU", column="--model/--fmu")
