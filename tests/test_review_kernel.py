@@ -188,3 +188,11 @@ def test_a_non_finite_start_velocity_is_named_not_blamed_on_the_model(v):
         simulate(m, _moves(m, 200), Ts=m.Ts, start_velocity={"x": v})
     with pytest.raises(InputError, match="v0.*finite"):
         kernel.run(kernel.CompiledModel(m), np.zeros((10, 1)), np.zeros((10, 2)), [v])
+
+
+def test_run_and_stepper_name_a_model_that_was_not_compiled():
+    m = fs.siso_model()
+    with pytest.raises(InputError, match="expected a CompiledModel.*DriveModel"):
+        kernel.run(m, np.zeros((5, 1)), np.zeros((5, 2)), [0.0])
+    with pytest.raises(InputError, match="expected a CompiledModel"):
+        kernel.Stepper(None)

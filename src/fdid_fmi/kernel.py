@@ -178,6 +178,9 @@ class Stepper:
     """
 
     def __init__(self, compiled):
+        if not isinstance(compiled, CompiledModel):
+            raise InputError(f"expected a CompiledModel (kernel.CompiledModel(model)), got "
+                             f"{type(compiled).__name__}", column="compiled")
         lib = _lib()
         self.cm = compiled
         self._buf = np.zeros(max(1, lib.fdid_buffer_size(ct.byref(compiled.c))))
