@@ -238,3 +238,20 @@ def test_absurd_dc_gain_value_is_named(capsys, tmp_path, trace):
         code, _, err = run(capsys, "identify", csv, "--method", "mimo", "--same-sample", "hold",
                            "--maxiter", "2", "--dc-gain", "error=3:1e300", "-o", tmp_path / "m.json")
     one_line(code, err, "no usable model", "d.c.-gain value")
+
+
+@pytest.mark.parametrize("lock,words", [("900:0.1", "locked pole 900 Hz must satisfy 0 < f <= Nyquist = 500 Hz")])
+def test_locked_pair_the_sampled_model_cannot_have_is_refused(capsys, tmp_path, trace, lock, words):
+    # a searched pole above Nyquist was refused, a locked one was accepted and recorded as 900 Hz
+    # while the Tustin-mapped model had it elsewhere (the search ran, the model was written)
+    csv = write_csv(tmp_path / "run.csv", trace)
+    code, _, err = run(capsys, "identify", csv, "--method", "mimo", "--same-sample", "hold", "--maxiter", "2",
+                       "--lock-complex", lock, "-o", tmp_path / "m.json")
+    one_line(code, err, words)
+    assert not (tmp_path / "m.json").exists()
+
+
+def test_locked_pair_with_zero_damping_is_refused_by_the_library(trace):
+    st = idf.mimo_structure(("x",), n_real=1, n_complex=0, locked_complex=[(12.0, 0.0)], same_sample="hold")
+    with pytest.raises(InputError, match="expected a finite zeta > 0"):
+        idf.identify_mimo(trace, st, maxiter=2)

@@ -157,6 +157,15 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
         vmax = max(np.max(np.abs(sg.vel[a])) for sg in prob.segments for a in fric_axes)
         bounds = Bounds(bounds.real_hz, bounds.omega_hz, bounds.zeta, (1e-4 * vmax, 0.3 * vmax))
     bounds.check(Ts)
+    nyq = 0.5 / Ts    # a locked pole, like a searched one, must be one the sampled model can have
+    for f in list(structure.locked_real_hz) + [w for w, _ in structure.locked_complex]:
+        if not (np.isfinite(f) and 0 < f <= nyq * (1 + 1e-9)):
+            raise InputError(f"locked pole {f:g} Hz must satisfy 0 < f <= Nyquist = {nyq:g} Hz (the "
+                             f"Tustin map would put it elsewhere)", column="locked poles")
+    for w, z in structure.locked_complex:
+        if not (np.isfinite(z) and z > 0):
+            raise InputError(f"locked pair {w:g} Hz has damping {z!r}; expected a finite zeta > 0",
+                             column="locked poles")
     par = _Params(structure, bounds, fric_axes, vfix)
 
     def objective(x):
