@@ -19,6 +19,7 @@ import os
 for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(var, "1")
 
+import argparse  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -99,6 +100,7 @@ def measure(label, model, Ts, plant, ax):
 
 
 def main():
+    argparse.ArgumentParser(description=__doc__.split("\n\n")[0]).parse_args()
     warnings.simplefilter("ignore")
     t0 = time.perf_counter()
     print("| plant, twin | twin drift [nm/s] | plant drift [nm/s] | twin - plant after 5 s [µm] |")

@@ -17,6 +17,7 @@ The commands are printed as they run.
 """
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import json
 import shlex
@@ -37,7 +38,11 @@ def run(*argv):
 
 
 def main():
-    out = Path(sys.argv[1] if len(sys.argv) > 1 else "out/align")
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("out", nargs="?", default="out/align", help="output folder (default out/align)")
+    ap.add_argument("--no-diagnose", action="store_true", help="skip the diagnosis (a few minutes)")
+    args = ap.parse_args()
+    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     cfg = presets.flexible_y()
     Ts = cfg.Ts
@@ -72,7 +77,7 @@ def main():
         "--outputs", "velocity,tool_position", "--real-hz", f"0.02:{nyq:g}", "--omega-hz", f"0.02:{nyq:g}",
         "--omega-hz", "20:40", "--zeta", "0.01:4", "--zeta", "0.001:0.5", "--maxiter", 40,
         "-o", d / "model_kgm.json")
-    if "--no-diagnose" not in sys.argv:   # a few minutes
+    if not args.no_diagnose:   # a few minutes
         run("diagnose", d / "model_kgm.json", "--train", d / "aligned.csv", "--json", d / "diagnosis.json")
     for run_ in (c, y):
         print(json.dumps({k: v for k, v in run_["truth"].items() if k != "controller"}, default=list)[:600])

@@ -8,7 +8,7 @@ HTML report per case.
 
     .venv/bin/python examples/diagnose_scenarios.py [OUT_DIR]
 """
-import sys
+import argparse
 import time
 import warnings
 from pathlib import Path
@@ -20,9 +20,12 @@ from fdid_fmi.diagnose.scenarios import INTEGRAL_ACTION, scenario
 from fdid_fmi.identify import identify_siso
 from fdid_fmi.io import read_trace
 
+_ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+_ap.add_argument("out", nargs="?", default="diagnose_out", help="folder for the reports and FMUs (default diagnose_out)")
+_args = _ap.parse_args()
 warnings.simplefilter("ignore")
-out = Path(sys.argv[1] if len(sys.argv) > 1 else "diagnose_out")
-out.mkdir(exist_ok=True)
+out = Path(_args.out)
+out.mkdir(parents=True, exist_ok=True)
 SHOW = ("samples", "period_mm", "frequency_hz", "damping", "v_s_mm_s", "backlash_mm", "channel",
         "ratio_to_coulomb")
 

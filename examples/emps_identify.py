@@ -3,6 +3,7 @@ DATA_EMPS_PULSES. Prints the free-run position error in µm (the README table).
 
     .venv/bin/python examples/emps_identify.py [path/to/shared/data/emps]
 """
+import argparse
 import sys
 import time
 from pathlib import Path
@@ -10,11 +11,18 @@ from pathlib import Path
 from fdid_fmi.identify import identify_full_ls, identify_quasi_static, identify_siso
 from fdid_fmi.io import read_trace
 from fdid_fmi.metrics import rms_max_um
+from fdid_fmi.errors import InputError
 from fdid_fmi.simulate import simulate
 
-folder = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[2] / "shared" / "data" / "emps"
-train = read_trace(folder / "DATA_EMPS.mat")
-test = read_trace(folder / "DATA_EMPS_PULSES.mat")
+_ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+_ap.add_argument("folder", nargs="?", default=Path(__file__).resolve().parents[2] / "shared" / "data" / "emps",
+                 help="folder with DATA_EMPS.mat and DATA_EMPS_PULSES.mat (default ../shared/data/emps)")
+folder = Path(_ap.parse_args().folder)
+try:
+    train = read_trace(folder / "DATA_EMPS.mat")
+    test = read_trace(folder / "DATA_EMPS_PULSES.mat")
+except InputError as exc:
+    sys.exit(f"emps_identify.py: error: {exc}")
 fits = {}
 for name, fn in (("pole search (SISO, no integral action)", lambda: identify_siso(train, "x", integral_action=False)),
                  ("Full LS (Eqn 4.7, constrained by Eqn 4.9)", lambda: identify_full_ls(train, "x")),

@@ -9,6 +9,7 @@
 Columns ``t_s, x_cmd_mm, x_mm, y_cmd_mm, y_mm`` (commanded and measured positions), read by
 every ``fdid`` command without ``--map``.
 """
+import argparse
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +30,8 @@ def write(trace, path):
 
 
 def main():
+    argparse.ArgumentParser(description="Write examples/virtual_xy_moves.csv and examples/virtual_circle.csv "
+                            "(overwritten) with the virtual feed drive.").parse_args()
     cfg = presets.deckel_maho_like()
     write(simulate_machine(cfg, tj.linear_moves(n_moves=12, axes=("x", "y"), Ts=cfg.Ts, seed=5), seed=5),
           HERE / "virtual_xy_moves.csv")

@@ -12,6 +12,7 @@ night 2 the friction of m01/x doubles and m02/y gets 20 µm backlash), the gener
 """
 from __future__ import annotations
 
+import argparse
 import shutil
 import sys
 from pathlib import Path
@@ -22,8 +23,10 @@ HERE = Path(__file__).resolve().parent
 
 
 def main(argv=None):
-    argv = sys.argv[1:] if argv is None else argv
-    out = Path(argv[0] if argv else "out/fleet_example")
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("out", nargs="?", default="out/fleet_example",
+                    help="output folder (default out/fleet_example)")
+    out = Path(ap.parse_args(sys.argv[1:] if argv is None else argv).out)
     man = write_virtual_fleet(out, n_machines=2, changes={("m01", "x"): "friction", ("m02", "y"): "backlash"},
                               diagnose=False)
     for f in ("plant.toml", "plant.csv"):
