@@ -381,3 +381,30 @@ def test_optimiser_settings_are_checked():
     finally:
         signal.alarm(0)
         signal.signal(signal.SIGALRM, old)
+
+
+def test_contour_sign_on_a_path_that_retraces_itself():
+    """Out along a diagonal and back on the same line, x with Kv 30 and y with Kv 60 1/s. At
+    constant speed v along u the axis errors are e_i = v u_i K_vel,i, K_vel,i = Ts / (1 - p_i);
+    the tool is off the line by -n.e (n the left normal), the same value and side on both
+    passes (u, n and e all change sign). On the way back the nearest segments of the way out
+    (same distance) lay within the search window and gave their side: -407 um for +416 um."""
+    px, py = math.exp(-30.0 * TS_C), math.exp(-60.0 * TS_C)
+    model = DriveModel(TS_C, np.diag([px, py]), np.diag([1 - px, 1 - py]), np.eye(2), np.zeros((2, 2)),
+                       [Port(f"{a}_cmd", "mm", "command", a) for a in "xy"],
+                       [Port(f"{a}_pos", "mm", "position", a) for a in "xy"], method="two gains")
+    ip = interpolate(parse_program("G1 X20 Y20 F3000\nG1 X0 Y0\n"), LIM_C, TS_C)
+    pr = predict(ip, model=model)
+    P = np.column_stack([ip.positions["x"], ip.positions["y"]])
+    v = np.linalg.norm(np.diff(P, axis=0), axis=1) / TS_C
+    u = np.array([1.0, 1.0]) / math.sqrt(2)
+    for b in (0, 1):
+        k = np.arange(*ip.spans[b])
+        vm = v[k].max()
+        cruise = k[np.abs(v[k] - vm) < 1e-9 * vm]
+        cruise = cruise[cruise > cruise[0] + 150]                 # 150 ms: past the transient
+        e = vm * u * np.array([TS_C / (1 - px), TS_C / (1 - py)])
+        expected = -np.array([-u[1], u[0]]) @ e                   # 0.4166 mm, left of travel
+        c = pr.contour[cruise]
+        assert np.all(c > 0.9 * expected)
+        assert c[-1] == pytest.approx(expected, rel=5e-3)

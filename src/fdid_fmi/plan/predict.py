@@ -70,7 +70,7 @@ def signed_contour_error(cmd, act, window=400, feet=False, k_nearest=12):
         t = np.clip(np.einsum("ksj,ksj->ks", AQ, AB[segs]) / L2[segs], 0.0, 1.0)
         D = AQ - t[..., None] * AB[segs]
         dist = np.where(ok, np.einsum("ksj,ksj->ks", D, D), np.inf)
-        j = np.argmin(dist, axis=1)
+        j = _nearest_in_time(dist, segs, np.arange(N))
         found = np.isfinite(dist[np.arange(N), j])
         best_seg[found] = segs[np.arange(N), j][found]
     # brute force where the KD-tree found nothing in the window (e.g. the command at rest)
@@ -89,7 +89,7 @@ def signed_contour_error(cmd, act, window=400, feet=False, k_nearest=12):
         dist_m = np.where(moving[None, seg], dist, np.inf)
         use_m = np.isfinite(dist_m).any(axis=1)
         dd = np.where(use_m[:, None], dist_m, dist)
-        best_seg[ks] = seg[np.argmin(dd, axis=1)]
+        best_seg[ks] = seg[_nearest_in_time(dd, np.broadcast_to(seg, dd.shape), ks)]
     ab = AB[best_seg]
     t = np.clip(np.einsum("ij,ij->i", Q - P[best_seg], ab) / L2s[best_seg], 0.0, 1.0)
     foot = P[best_seg] + t[:, None] * ab
@@ -122,6 +122,18 @@ def contour_axes(axes):
         i, j = ("x", "y", "z").index(axes[0]), ("x", "y", "z").index(axes[1])
         return axes if (j - i) % 3 == 1 else axes[::-1]
     return axes
+
+
+def _nearest_in_time(dist, segs, ks):
+    """Per row, the column of the smallest squared distance; among columns as near to within
+    1 nm (a path that retraces itself: the same line twice, a shared vertex), the segment whose
+    index is closest to the sample's own, so that the side (the sign) is taken from the pass
+    the tool is on, not from an earlier or later pass over the same place."""
+    dmin = np.min(dist, axis=1, keepdims=True)
+    with np.errstate(invalid="ignore"):
+        tie = dist <= (np.sqrt(dmin) + 1e-6 * 1e-3) ** 2
+    key = np.where(tie, np.abs(segs - np.asarray(ks)[:, None]), np.iinfo(np.int64).max)
+    return np.argmin(key, axis=1)
 
 
 @dataclass
