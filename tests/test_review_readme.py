@@ -42,3 +42,17 @@ def test_emps_identify_missing_folder_is_one_line(tmp_path):
     assert r.returncode != 0
     assert "Traceback" not in r.stderr
     assert r.stderr.strip().count("\n") == 0 and "DATA_EMPS.mat" in r.stderr
+
+
+def test_export_help_says_what_the_python_backend_needs(capsys):
+    # the help said the importer needs "Python with numpy"; the FMU's slave imports fdid_fmi
+    # (its compiled core steps the model), as the README and fmu/python_backend.py say
+    from fdid_fmi.cli import main
+    with pytest.raises(SystemExit) as exc:
+        main(["export", "--help"])
+    assert exc.value.code == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "importer needs Python with fdid-fmi installed" in out
+    assert "fdid-fmi[python-backend]" in out
+    slave = (ROOT / "src/fdid_fmi/fmu/python_slave_template.py").read_text()
+    assert "from fdid_fmi.kernel import" in slave

@@ -22,8 +22,9 @@ def register(sub):
     p.add_argument("--platforms", default="linux64", metavar="P[,P]",
                    help="binaries to build: linux64, win64 (default linux64)")
     p.add_argument("--backend", choices=("c", "python"), default="c",
-                   help="c (default; no Python at run time) or python (pythonfmu prototype: the "
-                        "importer needs Python with numpy)")
+                   help="c (default; no Python at run time) or python (pythonfmu prototype, FMI 2 only: "
+                        "needs pip install 'fdid-fmi[python-backend]', and the importer needs Python "
+                        "with fdid-fmi installed)")
     p.add_argument("--name", default=None, help="model identifier (default: from the FMU file name)")
     p.set_defaults(func=run)
 
