@@ -408,3 +408,13 @@ def test_contour_sign_on_a_path_that_retraces_itself():
         c = pr.contour[cruise]
         assert np.all(c > 0.9 * expected)
         assert c[-1] == pytest.approx(expected, rel=5e-3)
+
+
+def test_a_header_with_a_carriage_return_stays_one_comment():
+    """'\\r' in the header broke the comment over two lines: the written program was unreadable."""
+    from fdid_fmi.plan.ncprogram import write_program
+    p = parse_program("G1 X10 F600\n")
+    text = write_program(p, {0: 5.0}, header="tol 0.02\rmm (x)")
+    q = parse_program(text)
+    assert len(q.blocks) == 1 and q.blocks[0].feed == pytest.approx(5.0)
+    assert text.splitlines()[0].startswith("(tol 0.02") and "[x]" in text

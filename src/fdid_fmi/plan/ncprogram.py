@@ -513,7 +513,10 @@ def _has_f(raw):
 
 
 def _safe_comment(s):
-    return str(s).replace("(", "[").replace(")", "]").replace("\n", " ")
+    """A header text as one comment the reader reads back: no parentheses, no line breaks (CR,
+    LF and every other non-printable character escaped, as errors.one_line does)."""
+    from ..errors import one_line
+    return one_line(str(s).replace("\n", " ")).replace("(", "[").replace(")", "]")
 
 
 def _replace_f(raw, fword):
