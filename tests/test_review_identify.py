@@ -255,3 +255,29 @@ def test_locked_pair_with_zero_damping_is_refused_by_the_library(trace):
     st = idf.mimo_structure(("x",), n_real=1, n_complex=0, locked_complex=[(12.0, 0.0)], same_sample="hold")
     with pytest.raises(InputError, match="expected a finite zeta > 0"):
         idf.identify_mimo(trace, st, maxiter=2)
+
+
+# ----------------------------------------------------------------------------- search settings
+@pytest.mark.parametrize("kw,word", [({"seed": -1}, "seed"), ({"seed": 1.5}, "seed"), ({"maxiter": -1}, "maxiter"),
+                                     ({"popsize": -2}, "popsize"), ({"method": "direct", "maxiter": 0}, "maxiter")])
+def test_bad_search_settings_of_the_library_are_named(trace, kw, word):
+    # numpy's ValueError (seed -1 / 1.5, direct's maxfun), or silence: maxiter -1 and popsize -2 ran
+    k = {"maxiter": 2, "same_sample": "hold", "refine": False, **kw}
+    with pytest.raises(InputError, match=rf"column '{word}': {word} must be"):
+        idf.identify_siso(trace, **k)
+
+
+def test_multistart_reads_maxiter():
+    # --search multistart --maxiter N: maxiter was accepted and ignored (200 iterations per start)
+    from fdid_fmi.identify.search import run_search
+    calls = []
+
+    def f(x):
+        calls.append(1)
+        return float(np.sum((x - 0.3) ** 2) + 0.1 * np.sum(np.cos(20 * x)))
+
+    run_search(f, [0.0, 0.0], [1.0, 1.0], method="multistart", maxiter=1, starts=4)
+    few = len(calls)
+    calls.clear()
+    run_search(f, [0.0, 0.0], [1.0, 1.0], method="multistart", starts=4)
+    assert few < len(calls)

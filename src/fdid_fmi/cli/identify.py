@@ -48,7 +48,9 @@ def register(sub):
                    help="global optimiser (thesis: GlobalSearch / MultiStart / pattern search)")
     s.add_argument("--seed", type=int_in(0, 2 ** 32 - 1, "the seed"), default=0,
                    help="random seed of the search, 0 .. 2**32-1 (default 0)")
-    s.add_argument("--maxiter", type=int_in(1, 100000, "--maxiter"), default=None)
+    s.add_argument("--maxiter", type=int_in(1, 100000, "--maxiter"), default=None,
+                   help="de: generations (default 40 + 10 x dimension); multistart: iterations of each "
+                        "local search (default 200); direct: evaluations (default 1500)")
     s.add_argument("--v-tilde", type=finite_float("--v-tilde", positive=True), default=None,
                    help="fix the friction transition velocity [mm/s] (default: searched)")
     s.add_argument("--v-tilde-range", default=None, metavar="LO:HI", help="search range of v_tilde [mm/s]")

@@ -86,7 +86,9 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
     lo, hi : arrays, the box
     method : one of METHODS
     seed : int, makes the search deterministic
-    maxiter, popsize : DE settings (defaults scale with the dimension)
+    maxiter : DE generations (default 40 + 10 dim), iterations of each multistart local search
+        (default 200), DIRECT evaluations (default 1500)
+    popsize : DE population per dimension (default 8)
     starts : number of multistart points (default 8 + 4 dim)
     x0 : array, optional, a start point (clipped to the box): a member of DE's first population,
         the first multistart point; for every method the result is no worse than ``fun(x0)``
@@ -101,9 +103,15 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
         When no candidate had a finite objective (NaN or inf everywhere: data far outside the
         range the model's numbers can represent, e.g. positions scaled by 1e300 or 1e-300).
     """
+    from ..errors import InputError
     if method not in METHODS:
-        from ..errors import InputError
         raise InputError(f"unknown search method '{method}'; choose one of {METHODS}", column="method")
+    # numpy's errors (or silence: a negative maxiter ran the default) instead of one line naming it
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed <= 2 ** 32 - 1:
+        raise InputError(f"seed must be an integer in 0 .. 2**32-1, got {seed!r}", column="seed")
+    for name, v in (("maxiter", maxiter), ("popsize", popsize), ("starts", starts)):
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1):
+            raise InputError(f"{name} must be a positive integer, got {v!r}", column=name)
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     dim = lo.size
     scale = hi - lo
@@ -122,9 +130,10 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
     if x0 is not None:
         x0 = np.clip(np.asarray(x0, float), lo, hi)
 
-    def local(start):
+    def local(start, iterations=200):
         with np.errstate(invalid="ignore", over="ignore"):   # inf objectives (see _Counter)
-            res = optimize.minimize(cnt, start, method="L-BFGS-B", bounds=bounds, options={"maxiter": 200})
+            res = optimize.minimize(cnt, start, method="L-BFGS-B", bounds=bounds,
+                                    options={"maxiter": iterations})
         return res.fun, res.x
 
     pts = []
@@ -134,7 +143,7 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
             X0 = qmc.scale(sob.random(int(2 ** np.ceil(np.log2(starts))))[:starts], lo, hi)
             if x0 is not None:
                 X0 = np.vstack([x0, X0[:-1]])
-            pts = [local(p) for p in X0]
+            pts = [local(p, maxiter or 200) for p in X0]     # maxiter: of each local search
             best = min(pts, key=lambda p: p[0])
         else:
             if method == "de":
