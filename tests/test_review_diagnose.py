@@ -59,6 +59,23 @@ def test_diagnose_refuses_a_command_that_never_moves(small):
         diagnose(model, still, va, maxiter=2, max_steps=1)
 
 
+def test_diagnose_refuses_a_trace_too_short_to_diagnose(small):
+    model, tr, va = small
+    short = tr.slice(tr.t[1000], tr.t[1010])
+    # before: a numpy ValueError from the whiteness test (lags beyond the record)
+    with pytest.raises(InputError, match="the training trace has 11 samples; diagnosis needs at least 200"):
+        diagnose(model, short, va, maxiter=2, max_steps=1)
+    with pytest.raises(InputError, match="the training half of the trace has 150 samples"):
+        diagnose(model, tr.slice(tr.t[1000], tr.t[1299]), maxiter=2, max_steps=1)
+
+
+def test_whiteness_of_a_record_shorter_than_the_lags():
+    from fdid_fmi.diagnose.whiteness import correlation_tests
+    r = np.random.default_rng(0).normal(size=10)
+    t = correlation_tests(r, np.arange(10.0) ** 2, max_lag=50)
+    assert t["acf_lags"].tolist() == list(range(1, 10)) and np.isfinite(t["acf_outside"])
+
+
 def test_a_residual_of_rounding_noise_shows_no_gain():
     from fdid_fmi.diagnose.loop import _gain
     # the held-out residual of an axis standing exactly at its command, before and after a refit

@@ -54,6 +54,7 @@ from .residuals import Residuals, residuals, split_halves
 
 DETECTORS = {"friction": friction, "mode": mode, "delay": delay, "periodic": periodic,
              "coupling": coupling}
+MIN_SAMPLES = 200       # samples of each trace the diagnosis fits or judges on (as fdid diagnose)
 # effects that one more pole can imitate: they must also beat the order check's refit
 ORDER_RIVALS = ("delay", "mode")
 
@@ -442,10 +443,13 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     if val is None:
         train, val = split_halves(train)
         split = "no held-out trace given: first half fitted, second half held out"
-    for tr in (train, val):
+    for tr, what in ((train, "training"), (val, "held-out")):
         if abs(tr.Ts - model.Ts) > 1e-3 * model.Ts:
             raise InputError(f"trace sampled at {tr.Ts:g} s, model at {model.Ts:g} s", source=tr.source,
                              column="Ts")
+        if tr.n < MIN_SAMPLES:      # what fdid diagnose requires too (below: numpy errors, NaN tests)
+            raise InputError(f"the {what} {'half of the ' if split else ''}trace has {tr.n} samples; diagnosis "
+                             f"needs at least {MIN_SAMPLES}", source=tr.source)
     names = list(detectors if detectors is not None else DETECTORS)
     for nm in names:
         if nm not in DETECTORS:

@@ -18,6 +18,7 @@ def correlation_tests(r, u, max_lag=50):
     r = np.asarray(r, float) - np.mean(r)
     u = np.asarray(u, float) - np.mean(u)
     N = r.size
+    max_lag = max(0, min(int(max_lag), N - 1))      # no lag beyond the record
     band = Z99 / np.sqrt(N)
     rr = float(r @ r)
     uu = float(u @ u)
@@ -28,7 +29,7 @@ def correlation_tests(r, u, max_lag=50):
     xcf = np.array([float(r[k:] @ u[:N - k]) / den if k >= 0 else float(r[:k] @ u[-k:]) / den for k in xl])
     return {
         "band": band,
-        "acf_lags": lags, "acf": acf, "acf_outside": float(np.mean(np.abs(acf) > band)),
+        "acf_lags": lags, "acf": acf, "acf_outside": float(np.mean(np.abs(acf) > band)) if acf.size else 0.0,
         "acf_max": float(np.max(np.abs(acf))) if acf.size else 0.0,
         "xcf_lags": xl, "xcf": xcf, "xcf_outside": float(np.mean(np.abs(xcf) > band)),
         "xcf_max": float(np.max(np.abs(xcf))) if xcf.size else 0.0,
