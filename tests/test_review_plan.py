@@ -418,3 +418,15 @@ def test_a_header_with_a_carriage_return_stays_one_comment():
     q = parse_program(text)
     assert len(q.blocks) == 1 and q.blocks[0].feed == pytest.approx(5.0)
     assert text.splitlines()[0].startswith("(tol 0.02") and "[x]" in text
+
+
+def test_controller_setpoints_for_a_program_without_moves():
+    """A program of dwells / zero-length moves gave numpy's 'need at least one array to
+    concatenate'."""
+    from fdid_fmi.plan.interpolate import commands_from_trace
+    from fdid_fmi.trace import Trace
+    t = np.arange(100) * 1e-3
+    tr = Trace.from_arrays(t, {a: {"cmd": np.linspace(0, 1, 100)} for a in ("x", "y")}, source="s.csv")
+    for text in ("G4 P1\n", "G1 X0 F600\n"):
+        with pytest.raises(InputError, match="no move of non-zero length"):
+            commands_from_trace(parse_program(text), tr, ["x", "y"])

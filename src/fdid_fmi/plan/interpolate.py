@@ -347,6 +347,9 @@ def commands_from_trace(program, trace, axes):
         tags.append(np.full(m, b.index))
         sv.append(s0 + s)
         s0 += b.length
+    if not verts:
+        raise InputError("the program has no move of non-zero length: the trace's setpoints cannot "
+                         "be attributed to its blocks", source=program.source)
     V, T, S, TG = np.vstack(verts), np.concatenate(tags), np.concatenate(sv), np.vstack(tans)
     dims = [i for i, a in enumerate(AXES) if a in axes]
     owner = np.empty(trace.n, int)
