@@ -66,6 +66,14 @@ def test_signed_contour_error_sign():
     left = cmd + [0, 0.01]
     assert np.allclose(signed_contour_error(cmd, left), 0.01)
     assert np.allclose(signed_contour_error(cmd, cmd - [0, 0.01]), -0.01)
+    # the distance to the path, not the same-sample error: on a counter-clockwise circle
+    # (R = 5 mm) a point lagging 0.1 rad behind, 10 um inside (left) or outside, is +-10 um off
+    # (the same-sample error's normal part would be 35 um; the chords sag 0.006 um)
+    th = 2 * np.pi * np.arange(2000) / 2000
+    circ = 5.0 * np.column_stack([np.cos(th), np.sin(th)])
+    for r, c in ((4.99, 0.01), (5.01, -0.01)):
+        lag = r * np.column_stack([np.cos(th - 0.1), np.sin(th - 0.1)])
+        assert np.allclose(signed_contour_error(circ, lag)[100:], c, rtol=0, atol=1e-5)
 
 
 def test_prediction_matches_the_virtual_drive(machine, planned):
