@@ -281,3 +281,16 @@ def test_multistart_reads_maxiter():
     calls.clear()
     run_search(f, [0.0, 0.0], [1.0, 1.0], method="multistart", starts=4)
     assert few < len(calls)
+
+
+# ----------------------------------------------------------------------------- summary
+def test_zero_tracking_error_prints_no_nan(capsys, tmp_path, trace):
+    # a drive that follows its command exactly: the model (all gains 0) is right, but the
+    # summary printed "nan" as the discrepancy in % of an RMS of 0
+    exact = Trace.from_arrays(trace.t, {"x": {"cmd": trace.cmd("x"), "act": trace.cmd("x")}})
+    csv = write_csv(tmp_path / "exact.csv", exact)
+    code, out, err = run(capsys, "identify", csv, "--method", "quasi-static", "-o", tmp_path / "m.json")
+    assert code == 0, err
+    assert "nan" not in out.lower().replace("quasi-static", "")
+    gains = json.loads((tmp_path / "m.json").read_text())["gains"]["x"]
+    assert gains == {"K_vel": 0.0, "K_acc": 0.0, "K_jerk": 0.0}

@@ -339,9 +339,11 @@ def summary(model, trace=None):
             side = model.position_side(ax) if isinstance(model, DriveModel) else "motor"
             e = trace.cmd(ax) - measured_position(trace, ax, side)
             tb = prediction_table(e, sim.axes[ax]["error"])
+            pct = tb["discrepancy_pct_of_rms"]     # undefined ('nan') when the measured error is 0
+            pct = f"{pct:9.3f}" if math.isfinite(pct) else f"{'-':>9}"
             lines.append(f"  {ax + (' (tool)' if side == 'tool' else ''):<5} {tb['actual']['rms_um']:10.3f} {tb['actual']['max_um']:10.3f} "
                          f"{tb['discrepancy']['rms_um']:16.3f} {tb['discrepancy']['max_um']:16.3f} "
-                         f"{tb['discrepancy_pct_of_rms']:9.3f}")
+                         f"{pct}")
     return lines
 
 def run(args):
