@@ -430,3 +430,10 @@ def test_controller_setpoints_for_a_program_without_moves():
     for text in ("G4 P1\n", "G1 X0 F600\n"):
         with pytest.raises(InputError, match="no move of non-zero length"):
             commands_from_trace(parse_program(text), tr, ["x", "y"])
+
+
+def test_start_position_must_be_finite():
+    """fdid plan --start nan,0,0 was read: every position of the program became NaN."""
+    for bad in ((float("nan"), 0, 0), (0, float("inf"), 0)):
+        with pytest.raises(InputError, match="start must be three finite numbers"):
+            parse_program("G1 X10 F600\n", start=bad)

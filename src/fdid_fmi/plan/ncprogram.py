@@ -240,8 +240,8 @@ def parse_program(text, source="<string>", start=(0.0, 0.0, 0.0)):
     Program
     """
     pos = np.asarray(start, float).copy()
-    if pos.shape != (3,):
-        raise InputError(f"start must be (x, y, z), got {start!r}", column="start")
+    if pos.shape != (3,) or not np.all(np.isfinite(pos)):
+        raise InputError(f"start must be three finite numbers (x, y, z) in mm, got {start!r}", column="start")
     st = {"motion": None, "plane": 17, "units": "mm", "distance": 90, "arc distance": 91.1,
           "feed mode": 94, "feed": None, "f_word": None}
     blocks, ignored = [], []
