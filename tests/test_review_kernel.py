@@ -196,3 +196,14 @@ def test_run_and_stepper_name_a_model_that_was_not_compiled():
         kernel.run(m, np.zeros((5, 1)), np.zeros((5, 2)), [0.0])
     with pytest.raises(InputError, match="expected a CompiledModel"):
         kernel.Stepper(None)
+
+
+def test_a_compiled_model_does_not_follow_later_changes_of_the_model():
+    m = fs.siso_model()
+    cm = kernel.CompiledModel(m)
+    c = np.cumsum(np.full((400, 1), 0.05), axis=0)          # 50 mm/s: the friction is active
+    before = kernel.run(cm, c, np.zeros((400, 2)), [50.0])
+    m.C[:] *= 2.0                                             # the caller reuses its model
+    m.D[:] *= 2.0
+    after = kernel.run(cm, c, np.zeros((400, 2)), [50.0])
+    assert all(np.array_equal(x, y) for x, y in zip(before, after))

@@ -142,7 +142,9 @@ class CompiledModel:
         lay = build_layout(model)
         self.model, self.layout = model, lay
         S, S2, G1 = model.steady_state_maps()
-        self._keep = [np.ascontiguousarray(x, dtype=float).ravel() if np.size(x) else np.zeros(1)
+        # copies (not views of the model's C and D: the step's [C D] rows are copies, so a model
+        # changed after compiling would run half old, half new)
+        self._keep = [np.array(x, dtype=float).ravel() if np.size(x) else np.zeros(1)
                       for x in (model.C, model.D, S, S2, G1)]
         aidx = {a: i for i, a in enumerate(lay.axes)}
         ins = (_Input * max(1, len(model.inputs)))()
