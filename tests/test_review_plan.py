@@ -437,3 +437,11 @@ def test_start_position_must_be_finite():
     for bad in ((float("nan"), 0, 0), (0, float("inf"), 0)):
         with pytest.raises(InputError, match="start must be three finite numbers"):
             parse_program("G1 X10 F600\n", start=bad)
+
+
+def test_numbers_too_large_for_a_float_are_refused():
+    """X or F with 400 digits was read as inf: an infinite end point or an infinite feed."""
+    big = "9" * 400
+    for text in (f"G1 X{big} F600\n", f"G1 X10 F{big}\n"):
+        with pytest.raises(InputError, match="row 1.*too large"):
+            parse_program(text)

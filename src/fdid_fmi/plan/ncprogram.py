@@ -221,7 +221,10 @@ def tokenize(code, source="<string>", row=None):
             bad = code[pos:].split()[0] if code[pos:].split() else code[pos:]
             raise InputError(f"cannot read '{bad}' (expected a letter followed by a number, "
                              f"e.g. G1 X10.5 F600)", source=source, row=row)
-        words.append((m.group(1).upper(), float(m.group(2)), m.group(0).strip()))
+        value = float(m.group(2))
+        if not math.isfinite(value):                 # 400 digits read as inf
+            raise InputError(f"the number in '{m.group(0).strip()[:20]}...' is too large", source=source, row=row)
+        words.append((m.group(1).upper(), value, m.group(0).strip()))
         pos = m.end()
     return words
 
