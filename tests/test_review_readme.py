@@ -56,3 +56,71 @@ def test_export_help_says_what_the_python_backend_needs(capsys):
     assert "fdid-fmi[python-backend]" in out
     slave = (ROOT / "src/fdid_fmi/fmu/python_slave_template.py").read_text()
     assert "from fdid_fmi.kernel import" in slave
+
+
+def test_demo_pocket_corner_is_the_example_program():
+    from fdid_fmi.cli.demo import POCKET_CORNER_NC
+    assert POCKET_CORNER_NC == (ROOT / "examples" / "pocket_corner.nc").read_text()
+
+
+_PLAN_IN_INSTALLED = """
+import sys
+from pathlib import Path
+import fdid_fmi
+assert Path(fdid_fmi.__file__).resolve().parents[1] == Path(sys.argv[1]).resolve(), fdid_fmi.__file__
+from fdid_fmi import identify as idf
+from fdid_fmi.cli.demo import _plan_example
+from fdid_fmi.model import DriveModel
+from fdid_fmi.virtual import MachineConfig, presets, simulate_machine
+from fdid_fmi.virtual import trajectories as tj
+cfg = presets.deckel_maho_like()
+ms = [idf.identify_full_ls(simulate_machine(MachineConfig(axes=[cfg.axis(a)], Ts=cfg.Ts),
+      tj.linear_moves(n_moves=4, axes=(a,), Ts=cfg.Ts, seed=1), seed=1), a) for a in ("x", "y")]
+_plan_example(DriveModel.combine(ms, method="full-ls"), Path(sys.argv[2]))
+"""
+
+
+def test_demo_plans_the_example_in_an_installed_package(tmp_path):
+    # README: `fdid demo` writes plan.html of examples/pocket_corner.nc, and a plain (not editable)
+    # install gives a working fdid; the demo looked for ROOT/examples and silently skipped the plan
+    # when the package was installed (no examples/ next to site-packages)
+    import shutil
+    site = tmp_path / "site"
+    shutil.copytree(ROOT / "src" / "fdid_fmi", site / "fdid_fmi",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    out = tmp_path / "out"
+    out.mkdir()
+    r = subprocess.run([sys.executable, "-c", _PLAN_IN_INSTALLED, str(site), str(out)],
+                       cwd=tmp_path, env=dict(os.environ, PYTHONPATH=str(site)),
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "plan of pocket_corner.nc" in r.stdout and "cycle time 2.836 s" in r.stdout, r.stdout
+    assert (out / "plan.html").stat().st_size > 0
+
+
+def test_demo_emps_finds_the_data_from_an_installed_package(tmp_path):
+    # `fdid demo --emps` took ../shared/data/emps relative to the package file: in an installed
+    # package that is <venv>/lib/shared/data/emps ("file not found" naming a path in the venv);
+    # now: next to the source checkout, else ../shared/data/emps from the working directory,
+    # else one line asking for --data
+    import shutil
+    site = tmp_path / "site"
+    shutil.copytree(ROOT / "src" / "fdid_fmi", site / "fdid_fmi",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    env = dict(os.environ, PYTHONPATH=str(site))
+    code = "import sys; from fdid_fmi.cli import main; sys.exit(main(sys.argv[1:]))"
+    work = tmp_path / "work"
+    work.mkdir()
+    r = subprocess.run([sys.executable, "-c", code, "demo", "--emps", "--out", "o"], cwd=work, env=env,
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert r.stderr.startswith("fdid demo: error:") and "--data" in r.stderr, r.stderr
+    assert r.stderr.strip().count("\n") == 0
+    # a data folder at ../shared/data/emps from the working directory is the one read
+    emps = tmp_path / "shared" / "data" / "emps"
+    emps.mkdir(parents=True)
+    (emps / "DATA_EMPS.mat").write_bytes(b"not a mat file")
+    r = subprocess.run([sys.executable, "-c", code, "demo", "--emps", "--out", "o"], cwd=work, env=env,
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "../shared/data/emps/DATA_EMPS.mat" in r.stderr, r.stderr

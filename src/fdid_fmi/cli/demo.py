@@ -48,6 +48,19 @@ def _virtual_case(seed):
     return "virtual Deckel-Maho-like two-axis machine (no feed-forward)", train, val, {}
 
 
+def _default_emps_folder():
+    """../shared/data/emps next to the source checkout, else ../shared/data/emps from the working
+    directory (an installed package has no checkout around it)."""
+    checkout = Path(__file__).resolve().parents[3]
+    for folder in ((checkout / "pyproject.toml").is_file() and checkout.parent / "shared" / "data" / "emps",
+                   Path("..") / "shared" / "data" / "emps"):
+        if folder and folder.is_dir():
+            return folder
+    from ..errors import InputError
+    raise InputError("no EMPS data folder ../shared/data/emps here; give the folder with --data DIR",
+                     source="--emps")
+
+
 def _emps_case(folder):
     from ..io import read_trace
     folder = Path(folder)
@@ -67,7 +80,7 @@ def run(args):
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     if args.emps:
-        data = Path(args.data) if args.data else Path(__file__).resolve().parents[3].parent / "shared" / "data" / "emps"
+        data = Path(args.data) if args.data else _default_emps_folder()
         title, train, val, kw = _emps_case(data)
     else:
         title, train, val, kw = _virtual_case(args.seed)
@@ -142,17 +155,31 @@ def run(args):
     return 1 if bad else 0
 
 
+# examples/pocket_corner.nc, carried here so that an installed package (no examples/ folder)
+# plans it too (tests/test_review_readme.py checks that the two are the same)
+POCKET_CORNER_NC = """%
+O0100 (fdid-fmi example: a pocket corner with lines and arcs in XY, metric, G94)
+N10 G21 G90 G17 G94
+N20 G0 X0 Y0 S8000 M3
+N30 G1 X20 F3000
+N40 G3 X40 Y0 R10
+N50 G1 Y20 F2400
+N60 G2 X20 Y20 I-10 J0
+N70 G1 X0 Y0 F6000 (back to the start, 45 deg)
+N80 M5
+N90 M30
+%
+"""
+
+
 def _plan_example(model, out):
-    """Plan the shipped example program with the identified model (skipped when the examples
-    folder is not there, e.g. in an installed package)."""
-    nc = Path(__file__).resolve().parents[3] / "examples" / "pocket_corner.nc"
-    if not nc.is_file():
-        return
-    from ..plan import read_program
+    """Plan the example program ``examples/pocket_corner.nc`` with the identified model."""
     from ..plan.interpolate import AxisLimits, interpolate
+    from ..plan.ncprogram import parse_program
     from ..plan.predict import predict
     from ..plan.reporting import plan_report
-    prog = read_program(nc)
+    nc = Path("examples/pocket_corner.nc")
+    prog = parse_program(POCKET_CORNER_NC, source=str(nc))
     lim = {a: AxisLimits(100.0, 2000.0, 1e5) for a in ("x", "y", "z")}
     pr = predict(interpolate(prog, lim, model.Ts), model=model, tol_mm=0.02, program=prog)
     rep = plan_report(prog, pr, model=None, tol_mm=0.02)
