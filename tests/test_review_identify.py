@@ -294,3 +294,15 @@ def test_zero_tracking_error_prints_no_nan(capsys, tmp_path, trace):
     assert "nan" not in out.lower().replace("quasi-static", "")
     gains = json.loads((tmp_path / "m.json").read_text())["gains"]["x"]
     assert gains == {"K_vel": 0.0, "K_acc": 0.0, "K_jerk": 0.0}
+
+
+@pytest.mark.parametrize("method,kw", [("quasi-static", {"cutoff_hz": 0.0}), ("full-ls", {"cutoff_hz": 0.0}),
+                                       ("full-ls", {"v_tilde": 0.0}), ("full-ls", {"p_min_hz": float("nan")}),
+                                       ("full-ls", {"p_min_hz": -1.0})])
+def test_baseline_settings_zero_or_nan_are_refused_not_defaulted(trace, method, kw):
+    # cutoff_hz=0 and v_tilde=0 silently became the defaults ("x or default"), p_min_hz=-1
+    # disabled the pole constraint and p_min_hz=nan raised numpy's LinAlgError
+    name = next(iter(kw))
+    fn = idf.identify_quasi_static if method == "quasi-static" else lambda tr, **k: idf.identify_full_ls(tr, "x", **k)
+    with pytest.raises(InputError, match=rf"column '{name}': {name} must be a finite number > 0"):
+        fn(trace, **kw)

@@ -113,10 +113,13 @@ def identify_full_ls(traces, axis="x", cutoff_hz=None, order=2, v_tilde=None, p_
     ------
     InputError if the unconstrained LS gives an unstable closed loop (lack of excitation).
     """
-    from .quasi_static import MIN_SAMPLES_PER_GAIN, check_excitation, default_cutoff
+    from .quasi_static import MIN_SAMPLES_PER_GAIN, check_excitation, default_cutoff, positive
+    p_min_hz = positive(p_min_hz, "p_min_hz")
+    v_tilde = None if v_tilde is None else positive(v_tilde, "v_tilde")
     traces = training_ranges(traces, [axis], roles=("cmd", "act"))
     Ts = traces[0].Ts
-    cutoff_hz = cutoff_hz or default_cutoff(Ts)
+    # 0 was taken for "the default" (silently); None is the default, 0 a bad value
+    cutoff_hz = default_cutoff(Ts) if cutoff_hz is None else positive(cutoff_hz, "cutoff_hz")
     rows, ys, vmax = [], [], 0.0
     for tr in traces:
         xr, x = np.asarray(tr.cmd(axis), float), np.asarray(tr.act(axis), float)
@@ -162,7 +165,7 @@ def identify_full_ls(traces, axis="x", cutoff_hz=None, order=2, v_tilde=None, p_
                          "lack excitation for this method; use the pole search", source=traces[0].source)
     a1, a2, a3 = a[1], a[2], a[3]
     ai, al1, al2, be0, be1, be2, dp, dm = theta
-    vt = float(v_tilde) if v_tilde else 1e-3 * vmax
+    vt = v_tilde if v_tilde is not None else 1e-3 * vmax
     st = Structure(inputs=[InputSpec("command", axis), InputSpec("friction", axis),
                            InputSpec("feature", axis, params={"function": "abs_sat", "v_tilde": vt})],
                    outputs=[OutputSpec("error", axis)], n_real=3, n_complex=0, same_sample="quadratic")

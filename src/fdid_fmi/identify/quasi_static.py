@@ -18,6 +18,17 @@ from ..signals import filtered_derivatives
 from .ranges import training_ranges
 
 
+def positive(value, name):
+    """``value`` as a float when it is a finite number > 0, else InputError naming ``name``."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = float("nan")
+    if not (np.isfinite(v) and v > 0):
+        raise InputError(f"{name} must be a finite number > 0, got {value!r}", column=name)
+    return v
+
+
 def default_cutoff(Ts):
     """Default Butterworth cutoff for the command derivatives: min(50 Hz, 0.2 x Nyquist)."""
     return min(50.0, 0.1 / Ts)
@@ -47,7 +58,8 @@ def identify_quasi_static(traces, axes=None, cutoff_hz=None, order=2, terms=3):
     if not axes:
         raise InputError("no axis with both commanded and measured position", source=traces[0].source)
     training_ranges(traces, axes, roles=("cmd", "act"))
-    cutoff_hz = cutoff_hz or default_cutoff(Ts)
+    # 0 was taken for "the default" (silently); None is the default, 0 a bad value
+    cutoff_hz = default_cutoff(Ts) if cutoff_hz is None else positive(cutoff_hz, "cutoff_hz")
     gains, metrics = {}, {}
     for ax in axes:
         Phi, Y = [], []
