@@ -306,3 +306,11 @@ def test_baseline_settings_zero_or_nan_are_refused_not_defaulted(trace, method, 
     fn = idf.identify_quasi_static if method == "quasi-static" else lambda tr, **k: idf.identify_full_ls(tr, "x", **k)
     with pytest.raises(InputError, match=rf"column '{name}': {name} must be a finite number > 0"):
         fn(trace, **kw)
+
+
+def test_an_axis_given_twice_is_refused_before_the_work(capsys, tmp_path, trace):
+    # it was identified twice and then refused as "two inputs are named 'x_cmd'"
+    csv = write_csv(tmp_path / "run.csv", trace)
+    code, _, err = run(capsys, "identify", csv, "--axis", "x", "--axis", "x", "--method", "full-ls",
+                       "-o", tmp_path / "m.json")
+    one_line(code, err, "--axis", "give each axis once")
