@@ -207,3 +207,12 @@ def test_a_compiled_model_does_not_follow_later_changes_of_the_model():
     m.D[:] *= 2.0
     after = kernel.run(cm, c, np.zeros((400, 2)), [50.0])
     assert all(np.array_equal(x, y) for x, y in zip(before, after))
+
+
+def test_allpole_refuses_a_denominator_that_is_not_normalised():
+    rng = np.random.default_rng(11)
+    W, zi, R = rng.normal(size=(2, 30)), np.zeros((2, 3)), np.zeros((2, 33))
+    with pytest.raises(ValueError, match="an\\[0\\] = 1"):
+        kernel.allpole(1.0, 2.0 * AN, W, zi, R)         # was filtered as if an[0] were 1
+    kernel.allpole(1.0, AN, W, zi, R)
+    assert np.array_equal(R[:, 3:], ss.lfilter([1.0], AN, W, axis=1))
