@@ -302,3 +302,15 @@ def test_validate_names_an_fmu_that_is_not_of_the_reference_model(fmu_case):
     with pytest.raises(InputError, match="y_axis.fmu: the FMU has no variable.*'x_x_cmd'.*not exported from this model") as e:
         validate_fmu(other, va, model=model)
     assert "binary" not in str(e.value)
+
+
+def test_validate_names_an_fmu_sampled_at_another_ts_than_the_reference(fmu_case):
+    from fdid_fmi.fmu import export_fmu, validate_fmu
+    model, _, va, d = fmu_case
+    slow = model.to_dict()
+    slow["Ts"] = 2 * model.Ts
+    other = export_fmu(DriveModel.from_dict(slow), d / "two_ms.fmu")
+    # before: the FMU refused every step, reported as "does it have a binary for this platform?"
+    with pytest.raises(InputError, match="two_ms.fmu: the FMU steps at 0.002 s .* at 0.001 s") as e:
+        validate_fmu(other, va, model=model)
+    assert "binary" not in str(e.value)

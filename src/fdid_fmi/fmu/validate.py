@@ -365,6 +365,12 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     used = list(names.values()) + [var[("v0", ak[a])] for a in axes if ("v0", ak[a]) in var] + [
         v.name for v in lay.inputs if v.role == "ext"]
     lacking = [nm for nm in used if nm not in have]
+    h = getattr(md.defaultExperiment, "stepSize", None) if md.defaultExperiment is not None else None
+    if h is not None and float(h) > 0 and abs(float(h) - model.Ts) > 1e-9 * model.Ts:
+        # before: the FMU refused every step, reported as "does it have a binary for this platform?"
+        raise InputError(f"the FMU steps at {float(h):g} s (its default experiment) but the reference "
+                         f"model and the trace at {model.Ts:g} s: it was not exported from this model",
+                         source=str(fmu_path))
     if lacking:         # before: fmpy's "no field of name ...", blamed on a missing binary
         raise InputError(f"the FMU has no variable(s) {lacking} of the reference model: it was not "
                          "exported from this model (pass the model it was exported from with --model)",
@@ -393,8 +399,9 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     except InputError:
         raise
     except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions (missing binary, FMI error)
-        raise InputError(f"the FMU could not be run through fmpy.simulate_fmu ({exc}); does it have "
-                         f"a binary for this platform?", source=str(fmu_path)) from None
+        hint = "; does it have a binary for this platform?" if "platform" in str(exc) else ""
+        raise InputError(f"the FMU could not be run through fmpy.simulate_fmu ({exc}){hint}",
+                         source=str(fmu_path)) from None
     dt = time.perf_counter() - t0
     res.fmi_version = _fmi_version(fmu_path)
     res.steps_per_second = (trace.n + R) / dt if dt > 0 else float("nan")
