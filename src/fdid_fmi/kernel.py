@@ -311,8 +311,9 @@ def allpole(b0, an, W, zi, R):
     if not (1 <= n <= _INT_MAX and W.ndim == 2 and W.shape[0] <= _INT_MAX
             and R.shape == (W.shape[0], W.shape[1] + n) and zi.shape == (W.shape[0], n)):
         raise ValueError("allpole: order n >= 1, R C-contiguous floats (m, N + n) and zi (m, n)")
-    if np.isfinite(an[0]) and an[0] != 1.0:     # the C never reads an[0] (a NaN passes: NaN out)
-        raise ValueError(f"allpole: the denominator must be normalised, an[0] = 1, got {float(an[0])!r}")
+    a0 = float(an.flat[0])
+    if np.isfinite(a0) and a0 != 1.0:           # the C never reads an[0] (a NaN passes: NaN out)
+        raise ValueError(f"allpole: the denominator must be normalised, an[0] = 1, got {a0!r}")
     # the C reads W and an while it writes R (restrict pointers): a W or an in R's memory (an
     # in-place call) would be read after it was overwritten, so it is copied first
     if np.may_share_memory(W, R):
