@@ -450,6 +450,9 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         if tr.n < MIN_SAMPLES:      # what fdid diagnose requires too (below: numpy errors, NaN tests)
             raise InputError(f"the {what} {'half of the ' if split else ''}trace has {tr.n} samples; diagnosis "
                              f"needs at least {MIN_SAMPLES}", source=tr.source)
+    if max_delay >= train.n // 2:       # a shift longer than the record: a broadcast error after many refits
+        raise InputError(f"max_delay {max_delay} samples is not shorter than half the training trace "
+                         f"({train.n} samples)", column="max_delay")
     names = list(detectors if detectors is not None else DETECTORS)
     for nm in names:
         if nm not in DETECTORS:
