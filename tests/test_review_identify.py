@@ -314,3 +314,17 @@ def test_an_axis_given_twice_is_refused_before_the_work(capsys, tmp_path, trace)
     code, _, err = run(capsys, "identify", csv, "--axis", "x", "--axis", "x", "--method", "full-ls",
                        "-o", tmp_path / "m.json")
     one_line(code, err, "--axis", "give each axis once")
+
+
+@pytest.mark.parametrize("opts,words", [
+    (["--structure", "rigid", "--v-tilde", "1", "--v-tilde-range", "0.1:10"], ["--v-tilde-range", "give one"]),
+    (["--method", "mimo", "--no-friction", "--v-tilde", "1"], ["--v-tilde", "--no-friction"]),
+    (["--method", "mimo", "--no-friction", "--v-tilde-range", "0.1:1"], ["--v-tilde-range", "--no-friction"]),
+])
+def test_v_tilde_options_that_would_be_ignored_are_refused(capsys, tmp_path, trace, opts, words):
+    # the model was identified and written as if the option had not been given
+    csv = write_csv(tmp_path / "run.csv", trace)
+    code, _, err = run(capsys, "identify", csv, *opts, "--same-sample", "hold", "--maxiter", "2",
+                       "-o", tmp_path / "m.json")
+    one_line(code, err, *words)
+    assert not (tmp_path / "m.json").exists()

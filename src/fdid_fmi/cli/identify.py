@@ -193,6 +193,17 @@ def _refuse_unread(args):
             flag = "--" + dest.replace("_", "-")
             raise InputError(f"{flag} is read by --method {' / '.join(methods)} only, not by "
                              f"--method {args.method}", source=flag)
+    # v_tilde options: without friction (or with v_tilde fixed) they were silently ignored
+    # (--velocity / --ma-order stay: the diagnosis's velocity features read them from the record)
+    if args.v_tilde is not None and args.v_tilde_range:
+        raise InputError("--v-tilde fixes v_tilde; --v-tilde-range is the range it is searched in: "
+                         "give one of them", source="--v-tilde-range")
+    if args.no_friction:
+        for dest in ("v_tilde", "v_tilde_range"):
+            if getattr(args, dest) != args.option_defaults[dest]:
+                flag = "--" + dest.replace("_", "-")
+                raise InputError(f"{flag} sets the friction input, which --no-friction leaves out",
+                                 source=flag)
     if args.jobs is not None and not structure_is_auto(args):
         raise InputError("--jobs sets the processes fitting the candidates of --structure auto; "
                          "here the structure is pinned", source="--jobs")
