@@ -328,3 +328,15 @@ def test_v_tilde_options_that_would_be_ignored_are_refused(capsys, tmp_path, tra
                        "-o", tmp_path / "m.json")
     one_line(code, err, *words)
     assert not (tmp_path / "m.json").exists()
+
+
+@pytest.mark.parametrize("spec", ["error=1", "position=2"])
+def test_integrators_on_other_outputs_are_refused(capsys, tmp_path, trace, spec):
+    # error=1 wrote a model whose "x_error" output was the integral of the error (free run 90 %
+    # of the error itself); position=2 one 1315 % off; both reported as success
+    csv = write_csv(tmp_path / "run.csv", trace)
+    out = spec.split("=")[0]
+    code, _, err = run(capsys, "identify", csv, "--method", "mimo", "--outputs", out, "--integrators", spec,
+                       "--same-sample", "hold", "--maxiter", "2", "-o", tmp_path / "m.json")
+    one_line(code, err, "column 'integrators'", spec)
+    assert not (tmp_path / "m.json").exists()

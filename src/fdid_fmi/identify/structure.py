@@ -321,6 +321,13 @@ def mimo_structure(axes=("x",), outputs=("error",), n_real=1, n_complex=1, coupl
     """
     integrators = integrators or {}
     dc_gain = dc_gain or {}
+    for k, q in integrators.items():
+        # any other count gave an integrated signal labelled as the fitted one (error=1: the
+        # "error" output was the integral of the error, 90 % off, reported as a model)
+        if q and (k, q) != ("acceleration", 2):
+            raise InputError(f"{k}={q}: integrators are appended to a fitted tool-side acceleration "
+                             f"(acceleration=2 predicts the tool position); no other output has a "
+                             f"meaning with {q} integrator(s)", column="integrators")
     if not coupled and len(axes) > 1:
         raise InputError("a decoupled structure has one axis; identify the axes one by one",
                          column="axes")
