@@ -107,20 +107,21 @@ def test_demo_emps_finds_the_data_from_an_installed_package(tmp_path):
     site = tmp_path / "site"
     shutil.copytree(ROOT / "src" / "fdid_fmi", site / "fdid_fmi",
                     ignore=shutil.ignore_patterns("__pycache__"))
-    env = dict(os.environ, PYTHONPATH=str(site))
-    code = "import sys; from fdid_fmi.cli import main; sys.exit(main(sys.argv[1:]))"
-    work = tmp_path / "work"
-    work.mkdir()
-    r = subprocess.run([sys.executable, "-c", code, "demo", "--emps", "--out", "o"], cwd=work, env=env,
-                       capture_output=True, text=True, timeout=60)
-    assert r.returncode == 2 and "Traceback" not in r.stderr
-    assert r.stderr.startswith("fdid demo: error:") and "--data" in r.stderr, r.stderr
-    assert r.stderr.strip().count("\n") == 0
-    # a data folder at ../shared/data/emps from the working directory is the one read
-    emps = tmp_path / "shared" / "data" / "emps"
+    # one process, two working directories: without and with ../shared/data/emps
+    code = ("import os, sys\nfrom fdid_fmi.cli import main\n"
+            "for d in sys.argv[1:]:\n"
+            "    os.chdir(d)\n"
+            "    print('rc', main(['demo', '--emps', '--out', 'o']), file=sys.stderr, flush=True)\n")
+    (tmp_path / "a" / "work").mkdir(parents=True)
+    emps = tmp_path / "b" / "shared" / "data" / "emps"
     emps.mkdir(parents=True)
     (emps / "DATA_EMPS.mat").write_bytes(b"not a mat file")
-    r = subprocess.run([sys.executable, "-c", code, "demo", "--emps", "--out", "o"], cwd=work, env=env,
-                       capture_output=True, text=True, timeout=60)
-    assert r.returncode == 2 and "Traceback" not in r.stderr
-    assert "../shared/data/emps/DATA_EMPS.mat" in r.stderr, r.stderr
+    (tmp_path / "b" / "work").mkdir()
+    r = subprocess.run([sys.executable, "-c", code, str(tmp_path / "a" / "work"), str(tmp_path / "b" / "work")],
+                       env=dict(os.environ, PYTHONPATH=str(site)), capture_output=True, text=True, timeout=60)
+    assert "Traceback" not in r.stderr, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 4 and lines[1] == "rc 2" and lines[3] == "rc 2", r.stderr
+    assert lines[0].startswith("fdid demo: error:") and "--data" in lines[0]
+    # the data folder at ../shared/data/emps from the working directory is the one read
+    assert lines[2].startswith("fdid demo: error:") and "../shared/data/emps/DATA_EMPS.mat" in lines[2]
