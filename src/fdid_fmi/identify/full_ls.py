@@ -126,6 +126,10 @@ def identify_full_ls(traces, axis="x", cutoff_hz=None, order=2, v_tilde=None, p_
         if np.ptp(xr) <= 0:
             raise InputError(f"axis '{axis}' does not move in the data range", source=tr.source,
                              column=f"{axis}.cmd")
+        # positions relative to the range's first command: a drive's law does not depend on where
+        # the axis is, but Eqn 4.7's LS does (an offset of 5 mm went into the friction columns,
+        # which sum to ~1 in motion: free run 3.2 -> 209 um). Found by a review
+        xr, x = xr - xr[0], x - xr[0]
         ei = Ts * np.cumsum(xr - x)                                         # Eqn 4.6
         xd = butter_filtfilt(derivative(x, Ts, 1), Ts, cutoff_hz, order)
         xdd = butter_filtfilt(derivative(xd, Ts, 1), Ts, cutoff_hz, order)
