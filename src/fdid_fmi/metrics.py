@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import InputError
+
 
 def rms(x):
     x = np.asarray(x, float)
@@ -52,10 +54,12 @@ def contour_error(cmd_xy, act_xy, window=None):
     L2[L2 == 0] = 1.0
     if window is None:
         window = N if N <= 2000 else 500
+    if not window >= 0:
+        raise ValueError(f"contour_error window must be >= 0 samples, got {window!r}")
     out = np.empty(N)
     for k0 in range(0, N, 1024):
         ks = np.arange(k0, min(N, k0 + 1024))
-        lo = max(0, k0 - window)
+        lo = max(0, min(k0, N - 2) - window)
         hi = min(N - 1, ks[-1] + window + 1)
         seg = slice(lo, hi)
         AQ = Q[ks, None, :] - A[None, seg, :]
@@ -64,7 +68,8 @@ def contour_error(cmd_xy, act_xy, window=None):
         dist = np.sqrt(np.einsum("ksj,ksj->ks", d, d))
         # restrict each point to its own window
         idx = np.arange(lo, hi)[None, :]
-        dist = np.where(np.abs(idx - ks[:, None]) <= window, dist, np.inf)
+        # the last point's own segment is the one ending there (segment N - 2)
+        dist = np.where(np.abs(idx - np.minimum(ks, N - 2)[:, None]) <= window, dist, np.inf)
         out[ks] = dist.min(axis=1)
     return out
 
@@ -73,5 +78,8 @@ def prediction_table(measured_error, predicted_error):
     """Thesis-style table row: actual / predicted tracking error and the prediction error (µm)."""
     e = np.asarray(measured_error, float)
     p = np.asarray(predicted_error, float)
+    if e.shape != p.shape:      # numpy would broadcast (N,) against (N, 1) or (1,) to a figure
+        raise InputError(f"measured error of shape {e.shape} and prediction of shape {p.shape}: "
+                         "expected one predicted value per measured sample", column="predicted_error")
     return {"actual": rms_max_um(e), "predicted": rms_max_um(p), "discrepancy": rms_max_um(e - p),
             "discrepancy_pct_of_rms": 100.0 * rms(e - p) / rms(e) if rms(e) > 0 else float("nan")}

@@ -110,10 +110,13 @@ class DriveModel:
 
     def __post_init__(self):
         self.A = np.atleast_2d(np.asarray(self.A, dtype=float))
+        if self.A.ndim != 2 or self.A.shape[0] != self.A.shape[1] or not self.A.shape[0]:
+            raise InputError(f"A must be a square matrix with at least one state, got shape "
+                             f"{self.A.shape}", column="A")
         n = self.A.shape[0]
-        self.B = np.asarray(self.B, dtype=float).reshape(n, -1)
-        self.C = np.asarray(self.C, dtype=float).reshape(-1, n)
-        self.D = np.asarray(self.D, dtype=float).reshape(self.C.shape[0], self.B.shape[1])
+        self.B = _matrix(self.B, n, -1, "B")
+        self.C = _matrix(self.C, -1, n, "C")
+        self.D = _matrix(self.D, self.C.shape[0], self.B.shape[1], "D")
         self.inputs = [p if isinstance(p, Port) else Port(**p) for p in self.inputs]
         self.outputs = [p if isinstance(p, Port) else Port(**p) for p in self.outputs]
         self.poles = [complex(p) if not isinstance(p, (list, tuple)) else complex(p[0], p[1])
@@ -167,8 +170,7 @@ class DriveModel:
             if prt.kind == "friction":
                 if prt.axis not in self.axes:
                     raise InputError("friction input has no command input for its axis", column=prt.name)
-                if not prt.params.get("v_tilde", 0) > 0:
-                    raise InputError("friction input needs a positive v_tilde [mm/s]", column=prt.name)
+                _positive(prt, "v_tilde", "mm/s")      # a string or a dict was a TypeError
                 prt.params.setdefault("level", 1.0)
             if prt.kind == "feature" and prt.params.get("function") not in FEATURE_FUNCTIONS:
                 raise InputError(f"feature function must be one of {FEATURE_FUNCTIONS}", column=prt.name)
@@ -245,7 +247,8 @@ class DriveModel:
             "format": FORMAT, "format_version": FORMAT_VERSION, "kind": "state_space",
             "Ts": self.Ts, "method": self.method,
             "A": self.A.tolist(), "B": self.B.tolist(), "C": self.C.tolist(), "D": self.D.tolist(),
-            "inputs": [asdict(p) for p in self.inputs], "outputs": [asdict(p) for p in self.outputs],
+            "inputs": [jsonable(asdict(p)) for p in self.inputs],        # numpy scalars in params
+            "outputs": [jsonable(asdict(p)) for p in self.outputs],
             "poles": [[p.real, p.imag] for p in self.poles],
             "identification": jsonable(self.identification), "metrics": jsonable(self.metrics),
             "effects": jsonable(self.effects), "provenance": jsonable(self.provenance),
@@ -266,6 +269,13 @@ class DriveModel:
         missing = [k for k in keys if k not in d]
         if missing:
             raise InputError(f"model file lacks {missing}", source=source)
+        for key, typ, what in (("identification", dict, "object"), ("metrics", dict, "object"),
+                               ("provenance", dict, "object"), ("effects", list, "array")):
+            if key in d and not isinstance(d[key], typ):
+                raise InputError(f"must be a JSON {what}, got {_short(d[key])}", source=source, column=key)
+        if any(not isinstance(e, dict) for e in d.get("effects", [])):
+            raise InputError("every effect must be a JSON object (kind, axis, parameters)",
+                             source=source, column="effects")
         try:
             return cls(Ts=float(d["Ts"]), A=d["A"], B=d["B"], C=d["C"], D=d["D"],
                        inputs=d["inputs"], outputs=d["outputs"], method=d.get("method", ""),
@@ -337,6 +347,13 @@ class QuasiStaticModel:
     @classmethod
     def from_dict(cls, d, source="<dict>"):
         _check_header(d, source, "quasi_static")
+        cutoff, order = d.get("cutoff_hz", 1.0), d.get("order", 2)
+        if isinstance(cutoff, bool) or not isinstance(cutoff, (int, float)):   # true read as 1 Hz
+            raise InputError(f"cutoff_hz must be a number of Hz, got {_short(cutoff)}", source=source,
+                             column="cutoff_hz")
+        if isinstance(order, bool) or not isinstance(order, (int, float)) or not float(order).is_integer():
+            raise InputError(f"order must be an integer 1 .. 8, got {_short(order)}", source=source,
+                             column="order")                                # 2.7 was read as 2
         try:
             m = cls(Ts=float(d["Ts"]), gains=d["gains"], cutoff_hz=float(d["cutoff_hz"]),
                     order=int(d.get("order", 2)), method=d.get("method", "quasi-static"),
@@ -355,7 +372,10 @@ def load_model(path):
     if not path.is_file():
         raise InputError("model file not found", source=str(path))
     try:
-        d = json.loads(path.read_text())
+        d = json.loads(path.read_text(), object_pairs_hook=_unique_keys)
+    except _DuplicateKey as exc:
+        raise InputError(f"the key '{exc}' is given twice in one JSON object (which one is meant?)",
+                         source=str(path), column=str(exc)) from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InputError(f"is not a JSON model file ({exc})", source=str(path)) from None
     except RecursionError:
@@ -365,6 +385,19 @@ def load_model(path):
     if d.get("kind") == "quasi_static":
         return QuasiStaticModel.from_dict(d, source=str(path))
     return DriveModel.from_dict(d, source=str(path))
+
+
+class _DuplicateKey(Exception):
+    """A JSON object names a key twice (json keeps the last one without a word)."""
+
+
+def _unique_keys(pairs):
+    d = {}
+    for k, v in pairs:
+        if k in d:
+            raise _DuplicateKey(k)
+        d[k] = v
+    return d
 
 
 def _check_header(d, source, kind):
@@ -382,6 +415,22 @@ def _check_header(d, source, kind):
         raise InputError(f"Ts must be a number of seconds, got {Ts!r}", source=source, column="Ts")
     if d.get("kind", "state_space") != kind:
         raise InputError(f"is a '{d.get('kind')}' model, expected '{kind}'", source=source)
+
+
+def _matrix(x, rows, cols, name):
+    """``x`` as a float matrix of ``rows`` x ``cols`` (-1: any). A vector or a number is reshaped
+    (one input or output); a matrix must have the shape already: reshaping a transposed B
+    would scramble the model without a word."""
+    a = np.asarray(x, dtype=float)
+    if a.ndim == 2 and all(w in (-1, g) for w, g in zip((rows, cols), a.shape)):
+        return a
+    if a.ndim < 2:
+        try:
+            return a.reshape(rows, cols)
+        except ValueError:
+            pass
+    want = " x ".join("k" if w == -1 else str(w) for w in (rows, cols))
+    raise InputError(f"must be a {want} matrix, got shape {a.shape}", column=name)
 
 
 def _find(ports, kind, axis, name):

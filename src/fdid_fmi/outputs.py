@@ -72,6 +72,14 @@ def check_output(path, inputs=(), what="output file", suffix=None) -> Path:
         if i is not None and same_file(p, i):
             raise InputError(f"the {what} would overwrite the input file {i}; choose another name",
                              source=src)
+    try:
+        _check_place(p, src, what)
+    except OSError as exc:          # e.g. a name longer than the file system allows
+        raise InputError(f"cannot write the {what} ({exc.strerror or exc})", source=src) from None
+    return p
+
+
+def _check_place(p, src, what):
     if p.is_dir():
         raise InputError(f"the {what} names a directory; give a file name", source=src)
     parent = p.parent if str(p.parent) else Path(".")
@@ -83,7 +91,6 @@ def check_output(path, inputs=(), what="output file", suffix=None) -> Path:
         raise InputError(f"cannot write the {what}: folder '{parent}' is not writable", source=src)
     if p.exists() and not p.is_file():
         raise InputError(f"the {what} exists and is not a regular file", source=src)
-    return p
 
 
 def _umask_mode():
@@ -105,14 +112,19 @@ def atomic_path(path):
     p = Path(path)
     parent = p.parent if str(p.parent) else Path(".")
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".part", dir=parent)
+        # the name cut short: '.<name>.<random>.part' must fit in NAME_MAX (255) as the name does
+        fd, tmp = tempfile.mkstemp(prefix=f".{p.name[:100]}.", suffix=".part", dir=parent)
     except OSError as exc:
         raise InputError(f"cannot write ({exc.strerror or exc})", source=str(p)) from None
     os.close(fd)
     tmp = Path(tmp)
     try:
         yield tmp
-        os.chmod(tmp, _umask_mode())
+        try:        # an existing file keeps its permissions (a private 0600 file stays private)
+            mode = os.stat(p).st_mode & 0o777
+        except OSError:
+            mode = _umask_mode()
+        os.chmod(tmp, mode)
         os.replace(tmp, p)
     except OSError as exc:
         _unlink(tmp)
@@ -141,7 +153,9 @@ def atomic_write(path, data) -> Path:
     -------
     Path of the written file.
     """
-    raw = data.encode("utf-8") if isinstance(data, str) else bytes(data)
+    # a file name that is not UTF-8 reaches Python as lone surrogates ('\udcff'): written
+    # escaped, as the command line prints it, instead of failing after the work
+    raw = data.encode("utf-8", "backslashreplace") if isinstance(data, str) else bytes(data)
     p = Path(path)
     with atomic_path(p) as tmp:
         with open(tmp, "wb") as fh:

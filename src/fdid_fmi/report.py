@@ -79,6 +79,7 @@ class Report:
 
     def add_table(self, name, rows, columns=None, caption="", fmt="{:.3g}"):
         """A table. ``rows``: list of dicts (``columns`` picks and orders the keys) or of lists."""
+        name = _unique(name, self.tables)      # a second 'errors' replaced the first in the JSON
         if rows and isinstance(rows[0], dict):
             columns = columns or list(rows[0])
             body = [[r.get(c, "") for c in columns] for r in rows]
@@ -91,6 +92,7 @@ class Report:
     def add_figure(self, name, fig, data=None, caption="", dpi=90):
         """A matplotlib figure (rendered to PNG now, then closed) with the data it shows."""
         import matplotlib.pyplot as plt
+        name = _unique(name, self.figures)
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
         plt.close(fig)
@@ -147,7 +149,9 @@ class Report:
         data = json.dumps(self.to_dict()).replace("<", "\\u003c")
         out.append(f"<script type='application/json' id='report-data'>{data}</script>")
         out.append("</body></html>")
-        return "\n".join(out)
+        # a file name that is not UTF-8 reaches Python as lone surrogates ('\udcff'): escaped as
+        # the command line prints it, so that every writer can encode the page
+        return "\n".join(out).encode("utf-8", "backslashreplace").decode("utf-8")
 
     def write(self, path):
         """Write the self-contained HTML file atomically (``outputs.atomic_write``: a symlink at
@@ -156,6 +160,15 @@ class Report:
 
     def write_json(self, path):
         return atomic_write(path, json.dumps(self.to_dict(), indent=1))
+
+
+def _unique(name, taken):
+    """``name``, or ``name_2``, ``name_3``... when a table or figure of that name exists."""
+    base, k = str(name), 2
+    name = base
+    while name in taken:
+        name, k = f"{base}_{k}", k + 1
+    return name
 
 
 def _cell(v, fmt):

@@ -33,9 +33,11 @@ def butter_filtfilt(x, Ts, cutoff_hz, order=2):
 
 
 def moving_average(x, n):
-    """Centred (zero-phase) moving average of n-th order (window of n samples, n >= 1).
+    """Moving average of n-th order (window of n samples, n >= 1), centred on the sample.
 
-    The ends use the available samples only, so no phase shift and no zero padding bias.
+    An odd n is zero-phase; an even n cannot be centred on a sample and leads by half a
+    sample (window k - (n-1)//2 .. k + n//2; kept so that identified models stay the same).
+    The ends use the available samples only, so no zero padding bias.
     """
     if int(n) != n or n < 1:
         raise InputError(f"moving-average order must be a positive integer, got {n!r}", column="ma_order")

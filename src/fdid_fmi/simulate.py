@@ -162,6 +162,10 @@ def simulate(model, trace_or_commands, Ts=None, start_velocity=None, params=None
     if unknown:
         raise InputError(f"start_velocity names axes {unknown}; the model's axes are {sorted(cmds)}",
                          column="start_velocity")
+    for a, v in (start_velocity or {}).items():       # 'a' escaped as float()'s ValueError
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+            raise InputError(f"the start velocity of axis '{a}' must be a number of mm/s, got {v!r}",
+                             column="start_velocity")
     compiled = kernel.CompiledModel(model)
     if start_velocity is None and isinstance(trace_or_commands, Trace):
         if start == "auto":     # a given start velocity is a steady ramp start: no run-up
@@ -200,6 +204,10 @@ def _command_arrays(model, src, Ts, externals):
     if isinstance(src, Trace):
         cmds = {a: np.asarray(src.cmd(a), float) for a in axes}
         t, ts = src.t, src.Ts
+        if Ts is not None and not (isinstance(Ts, (int, float, np.integer, np.floating))
+                                   and abs(Ts - ts) <= 1e-3 * ts):     # it was ignored
+            raise InputError(f"Ts {Ts!r} differs from the trace's sample time {ts:g} s (give Ts only "
+                             "with command arrays)", column="Ts")
         exts = {}
         if isinstance(model, DriveModel):
             for p in model.inputs:

@@ -81,6 +81,10 @@ class Trace:
 
     def __post_init__(self):
         if isinstance(self.channels, (list, tuple)):
+            names = [c.name for c in self.channels]
+            dup = next((nm for k, nm in enumerate(names) if nm in names[:k]), None)
+            if dup is not None:         # the dict would keep the last one without a word
+                raise InputError("two channels have this name", source=self.source, column=dup)
             self.channels = {c.name: c for c in self.channels}
         t = np.array(self.t, dtype=float)
         t.setflags(write=False)
@@ -91,6 +95,9 @@ class Trace:
     def _check(self):
         src = self.source
         n = self.t.size
+        if self.t.ndim != 1:
+            raise InputError(f"time must be one column of numbers, got an array of shape {self.t.shape}",
+                             source=src, column="time")
         if n < 2:
             raise InputError(f"a trace needs at least 2 samples, got {n}", source=src, column="time")
         bad = ~np.isfinite(self.t)
@@ -116,6 +123,9 @@ class Trace:
                              f"t = {float(self.t[k]):.6g} s): more than one sample rate; resample the "
                              f"trace first", source=src, column="time", row=k + 1)
         for name, ch in self.channels.items():
+            if ch.data.ndim != 1:
+                raise InputError(f"must be one column of numbers, got an array of shape {ch.data.shape}",
+                                 source=src, column=name)
             if ch.data.shape != (n,):
                 raise InputError(f"has {ch.data.size} samples but time has {n}", source=src, column=name)
             nonfinite = ~np.isfinite(ch.data)
@@ -208,12 +218,18 @@ class Trace:
         if a < t0 - tol or b > t1 + tol:
             raise InputError(f"range [{a}, {b}] s lies outside the data [{t0}, {t1}] s",
                              source=self.source, column="range")
-        m = (self.t >= a - 1e-9 * max(1.0, abs(a))) & (self.t <= b + 1e-9 * max(1.0, abs(b)))
+        # a bound on a sample counts within float rounding: 1e-9 relative, but at most a
+        # thousandth of a sample (1e-9 |t| alone is 1.7 s for time stamps in epoch seconds)
+        ea, eb = (min(1e-9 * max(1.0, abs(v)), 1e-3 * self.Ts) for v in (a, b))
+        m = (self.t >= a - ea) & (self.t <= b + eb)
         if m.sum() < 2:
             raise InputError(f"range [{a}, {b}] s holds fewer than 2 samples", source=self.source,
                              column="range")
         chans = {k: Channel(c.name, c.unit, c.data[m]) for k, c in self.channels.items()}
-        return self._with(self.t[m], chans, f"[{a:g}:{b:g}s]")
+        out = self._with(self.t[m], chans, f"[{a:g}:{b:g}s]")
+        # the same grid: a few samples cannot tell its step from a rounder one (1.05 ms -> 1 ms)
+        out.__dict__["Ts"] = self.Ts
+        return out
 
     def select(self, ranges) -> list:
         """Split into data ranges (the thesis GUI allows up to four).
