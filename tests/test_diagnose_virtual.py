@@ -16,12 +16,15 @@ from fdid_fmi.diagnose.scenarios import INTEGRAL_ACTION, scenario
 from fdid_fmi.identify import identify_siso
 
 
-def _run(name, axis="x", **kw):
+def _run(name, axis="x", base_maxiter=30, **kw):
+    """Few search iterations keep the suite fast; where the searches do not converge in them, the
+    result follows the last bits of the BLAS kernels (AVX2 / AVX-512) and the test gives more."""
     tr, va = scenario(name)
+    kw.setdefault("maxiter", 20)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        m = identify_siso(tr, axis=axis, maxiter=30, integral_action=INTEGRAL_ACTION.get(name, True))
-        d = diagnose(m, tr, va, maxiter=20, **kw)
+        m = identify_siso(tr, axis=axis, maxiter=base_maxiter, integral_action=INTEGRAL_ACTION.get(name, True))
+        d = diagnose(m, tr, va, **kw)
     return d, tr
 
 
@@ -79,7 +82,10 @@ def test_position_periodic_force():
 
 
 def test_unmodelled_mode():
-    d, tr = _run("mode")
+    # converged searches: at 30 / 20 iterations the base model and the mode's refit end in
+    # different points of a flat valley on AVX2 and AVX-512 (52.6-53.9 Hz); from 60 / 40 on they
+    # agree (53.86 Hz)
+    d, tr = _run("mode", base_maxiter=60, maxiter=40)
     assert [e["kind"] for e in d.effects_added] == ["mode"]
     e = d.effects_added[0]
     poles = tr.meta["truth"]["linear"]["continuous"]["poles"]
@@ -87,7 +93,7 @@ def test_unmodelled_mode():
     assert abs(e["frequency_hz"] / flex["hz"] - 1) < 0.03      # closed-loop mode, 54.2 Hz
     assert abs(e["frequency_hz"] / 55.0 - 1) < 0.03            # the tool-side mode, 55 Hz
     assert e["damping"] < 0.2
-    assert _val_gain(d) >= 0.2                                 # measured: about 32 %
+    assert _val_gain(d) >= 0.2                                 # measured: 37 %
 
 
 def test_cross_axis_coupling():

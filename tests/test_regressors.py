@@ -135,3 +135,22 @@ def test_normal_equations_solved_as_scipy_solve():
     b = M @ rng.standard_normal(50)
     x = _solve_normal(G, b)
     assert np.all(np.isfinite(x)) and np.allclose(G @ x, b)
+
+
+def test_collinear_regressors_get_the_same_coefficients_whatever_the_rounding():
+    """Two identical regressor rows (a backlash feature sat(v / v_b) at v_b = v_tilde beside the
+    friction row): G is singular only to rounding, Cholesky succeeds and returns rounding along the
+    null direction, different for each BLAS kernel (on plant2 +-0.48 on AVX-512 against 1e-3 on
+    AVX2, a tool side 2.9 mm off held out). Whatever the last bits of G, the solution is the
+    minimum-norm one: the repeated row's coefficient split in two equal halves."""
+    from fdid_fmi.identify.lsfit import _solve_normal
+    rng = np.random.default_rng(7)
+    M3 = rng.standard_normal((3, 400))
+    M = np.vstack([M3, M3[2:3]])
+    G, b = M @ M.T, M @ rng.standard_normal(400)
+    x3 = np.linalg.solve(M3 @ M3.T, b[:3])
+    expected = np.r_[x3[:2], x3[2] / 2, x3[2] / 2]
+    for _ in range(20):
+        E = rng.standard_normal((4, 4)) * 4 * np.finfo(float).eps * np.abs(G).max()
+        x = _solve_normal(G + (E + E.T) / 2, b)
+        assert np.allclose(x, expected, rtol=1e-9, atol=1e-12), (x, expected)   # before: 0.2 off

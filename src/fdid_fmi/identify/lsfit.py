@@ -283,15 +283,27 @@ class LSProblem:
         return fit
 
 
+# A regressor whose Cholesky pivot keeps less than this share of its column's energy (d_i^2 / G_ii:
+# 1 - R^2 of the column on the earlier ones) is collinear to rounding: two identical feature rows (a
+# backlash sat(v / v_b) at v_b = v_tilde beside the friction row), or a pole set whose filtered
+# numerator rows coincide (singular-value ratios of G of 1e-14 with the next at 1e-4, seen in
+# the mode refits). Cholesky then returns rounding along the null direction: coefficients of
+# +-0.48 instead of 1e-3 that fit the training data equally and free-run 2.9 mm off on another
+# trace, depending on the machine's BLAS kernels (AVX2 or AVX-512). Such systems get the
+# minimum-norm solution with directions below COLLINEAR_RTOL of the largest singular value of G
+# dropped (gelsd), the same on every machine. Legitimate pivots of the searches reach ~1e-11.
+COLLINEAR_RTOL = 1e-12
+
+
 def _solve_normal(G, rhs):
     """Solution of the normal equations G theta = rhs: Cholesky (LAPACK ``posv``, what
     ``scipy.linalg.solve(assume_a="pos")`` computes, without its condition estimate and checks:
-    this runs at every pole set of the search), least squares when G is not positive definite
-    (collinear regressors)."""
-    _, x, info = lapack.dposv(G, rhs)
-    if info != 0:
-        x = linalg.lstsq(G, rhs, check_finite=False)[0]
-    return x
+    this runs at every pole set of the search); the truncated minimum-norm least-squares solution
+    when G is not positive definite or a pivot shows collinear regressors (see COLLINEAR_RTOL)."""
+    c, x, info = lapack.dposv(G, rhs)
+    if info == 0 and np.all(np.diag(c) ** 2 > COLLINEAR_RTOL * np.diag(G)):
+        return x
+    return linalg.lstsq(G, rhs, cond=COLLINEAR_RTOL, check_finite=False)[0]
 
 
 def feature_signal(params, vel, pos):
