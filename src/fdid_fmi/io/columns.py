@@ -14,7 +14,7 @@ removed first, see ``fdid_fmi.units.unit_from_suffix``):
 ==========================================  ==================================
 column name                                 meaning
 ==========================================  ==================================
-``t_s``, ``time``, ``t_ms``, ``zeit``       time (no unit given: s)
+``t_s``, ``time``, ``t_ms``, ``zeit``       time (no unit given: s; see below)
 ``x_cmd_mm``, ``x_ref_mm``, ``x_set_mm``    axis x, commanded position (cmd)
 ``x_mm``, ``x_act_mm``, ``x_motor_mm``      axis x, measured position (act)
 ``x_tool_mm``, ``x_table_mm``, ``x_kgm_mm`` axis x, tool-side position (tool)
@@ -30,6 +30,10 @@ names found this way are lower case. A commanded velocity/acceleration (``x_v_cm
 is not a role and stays an extra channel. The unit must fit the role (a position unit
 for cmd/act/tool/err, a velocity unit for vel, ...); a column whose name says one thing
 and whose unit says another is refused with a clear message.
+
+A time column with no unit is read in s, but one of 16 or more samples stepping by 0.1 s or
+more is refused (:func:`check_time_unit`): servo traces step by 0.1-10 ms, so it is in ms (1 kHz read as
+Ts = 1 s) or us; ``t_ms``, ``t [ms]`` or ``--unit t=ms`` states the unit.
 
 The tracking-error pseudo-role ``err`` is not a ``Trace`` role: the column is kept as an
 extra channel, and when an axis has ``err`` and ``act`` but no ``cmd`` (the thesis GUI
@@ -51,6 +55,8 @@ TIME_KEYS = ("t", "time")
 TIME_NAMES = {"t", "time", "zeit", "timestamp", "times"}
 AXIS_RE = re.compile(r"^(?:[xyzabcuvw]\d*|axis\d+)$")
 AXIS_NAME_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")   # any axis name (it becomes C/FMI names)
+MAX_UNSTATED_STEP_S = 0.1   # s: a time column with no unit stepping this slowly is not in s
+MIN_CHECKED_SAMPLES = 16    # ... checked from this many samples on (a trace tool's record has 1000s)
 
 # role keywords (the first token after the axis that is a keyword decides; see _role_from_tokens)
 ROLE_WORDS = {
@@ -352,6 +358,8 @@ def assemble(columns, *, source, mapping=None, units=None, file_units=None, rows
 
     t = U.to_canonical(values(tcol), tunit, source, tcol)[0]
     check_time(t, source=source, column=tcol, row_of=row_of, jitter_tol=jitter_tol)
+    if stated[tcol] is None:
+        check_time_unit(t, source=source, column=tcol)
 
     channels = {}
     for col in names:
@@ -404,6 +412,34 @@ def _free_name(name, taken):
         k += 1
         out = f"{name}{k}"
     return out
+
+
+def check_time_unit(t, *, source, column):
+    """Refuse a time column read as seconds for want of a unit whose step says it is not.
+
+    A column with no unit (``time``, ``t``, a mapped ``col1``) is read in s. Controller trace
+    tools sample servo signals every 0.1-10 ms; a median step of ``MAX_UNSTATED_STEP_S``
+    (0.1 s) or more is a time column in ms (1 kHz -> steps of 1 "s") or us, or a sample
+    counter, and would make every filter, pole bound and Ts of the model 1000x off. A record
+    that really is that slow passes once its unit is stated (``t_s``, ``--unit t=s``).
+    Checked from ``MIN_CHECKED_SAMPLES`` (16) samples on: a trace tool's record has thousands,
+    and hand-written examples of a few rows (``time`` 0, 1, 2) stay readable.
+
+    Parameters
+    ----------
+    t : ndarray, s (as read with no unit, checked by :func:`check_time`)
+    """
+    if t.size < MIN_CHECKED_SAMPLES:
+        return
+    ts = float(np.median(np.diff(t)))
+    if ts >= MAX_UNSTATED_STEP_S * (1 - 1e-6):     # 0.1 written in a file differs by rounding
+        base = split_unit(column)[0] if _is_time_name(split_unit(column)[0]) else "t"
+        raise InputError(
+            f"the time column has no unit and steps by {ts:.6g} (median), which as seconds would "
+            f"be {1.0 / ts:.4g} Hz; servo traces step by 0.1-10 ms, so this looks like ms (or us, "
+            f"or a sample count). State the unit: name the column like {base}_ms (or write "
+            f"'{base} [ms]' in a header), or give --unit {column}=ms (Python: units={{'{column}': "
+            f"'ms'}}); if it really is seconds, --unit {column}=s", source=source, column=column)
 
 
 def check_time(t, *, source, column, row_of=None, jitter_tol=0.05):

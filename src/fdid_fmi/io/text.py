@@ -38,7 +38,7 @@ import numpy as np
 from .. import units as U
 from ..errors import InputError
 from ..trace import Trace
-from .columns import assemble, split_unit
+from .columns import AXIS_RE, assemble, split_unit
 from .common import file_sha256, read_text_file, text_lines
 
 LAYOUTS = ("auto", "columns", "siso-gui", "verify-gui")
@@ -69,7 +69,10 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
         ``{column: unit}`` overriding units from names / header, e.g. ``{"x_pos": "um"}``.
     layout : {"auto", "columns", "siso-gui", "verify-gui"}
     axes : sequence of str, optional
-        Axis names for the GUI layouts (default ``("x",)`` / ``("x", "y")``).
+        Axis names for the GUI layouts (default ``("x",)`` / ``("x", "y")``): one / two
+        distinct names ``x y z a b c u v w`` (optionally with digits, ``x1``) or ``axis1``...;
+        a string is a comma list. Refused with the columns layout, whose axes come from the
+        column names or the mapping (see :func:`gui_axes`).
     delimiter : str, optional
         ``","``, ``";"``, ``"\\t"`` or ``"whitespace"``; detected when omitted.
     jitter_tol : float
@@ -130,12 +133,12 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
         if len(row0) != need:
             raise InputError(f"layout '{layout}' expects {need} columns ({GUI_TEXT[layout]}) but "
                              f"the first data line has {len(row0)}", source=src, row=entries[k0][0])
-        ax = tuple(axes) if axes else (("x",) if layout == "siso-gui" else ("x", "y"))
-        if len(ax) != need // 2:
-            raise InputError(f"layout '{layout}' needs {need // 2} axis name(s), got {list(ax)}",
-                             source=src, column="axes")
+        ax = gui_axes(axes, layout, src)
         names = ["t"] + [f"{a}_{k}" for a in ax for k in ("act", "err")]
-        file_units = {n: ("s" if n == "t" else "mm") for n in names}
+        # the layout says mm; its "time [s]" is the GUI's convention, not a statement of this
+        # file: unless the header states it, the time unit counts as assumed (so a time column
+        # in ms, steps of 1 for 1 kHz, is caught by columns.check_time_unit)
+        file_units = {n: "mm" for n in names if n != "t"}
         if has_header:      # the layout fixes s and mm: a header saying otherwise is not skipped
             hnames, hunits = _parse_header(first, src, entries[0][0])
             for j, h in enumerate(hnames[:need]):
@@ -144,9 +147,16 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
                     raise InputError(f"layout '{layout}' reads {GUI_TEXT[layout]}, but the header gives "
                                      f"'{u}'; use the columns layout (the header's units then hold)",
                                      source=src, column=h)
+                if j == 0 and u is not None:
+                    file_units["t"] = "s"
         if mapping:
             raise InputError(f"layout '{layout}' fixes the columns ({GUI_TEXT[layout]}); "
                              f"a mapping is not used with it", source=src, column="mapping")
+    elif axes is not None and (isinstance(axes, str) or len(axes)):
+        # the axes of a columns file come from its names or the mapping: axes= would be ignored
+        raise InputError(f"axes= (--axes) names the axes of the GUI layouts ({', '.join(GUI_COLUMNS)});"
+                         f" with the columns layout the axes come from the column names or the "
+                         f"mapping (--map), so {_list(axes)} would be ignored", source=src, column="axes")
     elif has_header:
         names, file_units = _parse_header(first, src, entries[0][0])
         if len(entries) > 1 and _is_units_row(_split(entries[1][1], delim), len(names), comma_ok):
@@ -199,6 +209,39 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
 
 
 # ----------------------------------------------------------------------------- helpers
+def _list(axes):
+    return [axes] if isinstance(axes, str) else [str(a) for a in axes]
+
+
+def gui_axes(axes, layout, src):
+    """The axis names of a GUI layout, checked: ``siso-gui`` one, ``verify-gui`` two, distinct.
+
+    An axis name is one the name conventions of ``fdid_fmi.io.columns`` read back from the
+    column ``<axis>_act``: ``x y z a b c u v w``, optionally followed by digits (``x1``,
+    ``a2``), or ``axis1``, ``axis2``, ... -- lower case, as the conventions return them (any
+    other name gave the axis no roles, and a name given twice read both axes into one).
+    A string is a comma list (``"x,y"``, as ``--axes``). ``None`` or empty: ``x`` / ``x, y``.
+    """
+    need = GUI_COLUMNS[layout] // 2
+    if axes is None or (not isinstance(axes, str) and len(axes) == 0):
+        return ("x",) if need == 1 else ("x", "y")
+    ax = tuple(a.strip() for a in axes.split(",")) if isinstance(axes, str) else tuple(axes)
+    if len(ax) != need:
+        raise InputError(f"layout '{layout}' needs {need} axis name(s) (axes= / --axes), got "
+                         f"{list(ax)}", source=src, column="axes")
+    for a in ax:
+        if not isinstance(a, str) or not AXIS_RE.fullmatch(a):
+            hint = (f" (lower case: '{a.lower()}')" if isinstance(a, str) and AXIS_RE.fullmatch(a.lower())
+                    else "")
+            raise InputError(f"axes= / --axes: {a!r} is not an axis name{hint}; expected x, y, z, a, "
+                             f"b, c, u, v or w, optionally followed by digits (x1, a2), or axis1, "
+                             f"axis2, ...", source=src, column="axes")
+    if len(set(ax)) != len(ax):
+        raise InputError(f"axes= / --axes names axis '{ax[0]}' twice ({list(ax)}); the {layout} "
+                         f"layout's two axes need two names", source=src, column="axes")
+    return ax
+
+
 def _pick_delimiter(line, delimiter, src):
     if delimiter is not None:
         d = {"whitespace": None, "space": None, "tab": "\t", "\\t": "\t", "comma": ",",
