@@ -103,7 +103,8 @@ def add_trace_arguments(parser):
                    help="text file layout: columns (header line), siso-gui (time, x, e), "
                         "verify-gui (time, x1, e1, x2, e2); auto detects")
     g.add_argument("--axes", default=None, metavar="X[,Y]",
-                   help="axis names for the GUI layouts (default x / x,y) or the .mat EMPS axis")
+                   help="axis names for the GUI layouts (default x / x,y; distinct names x y z a b c "
+                        "u v w, optionally with digits, or axis1, axis2 ...) or the .mat EMPS axis")
     return parser
 
 
