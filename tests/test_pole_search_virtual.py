@@ -126,7 +126,11 @@ def test_flexible_mode_by_default(flexible):
     cfg, train, vals, _, mode = flexible
     m = identify_auto(train, "y", seed=0, workers=2)
     ch = StructureChoice.from_dict(m.identification["structure_choice"])
-    assert ch.outputs == ["error", "tool_position"] and ch.chosen == "r1c2"     # measured: r1c2
+    # two complex pairs: r1c2, or r2c2 where its search (a flat valley of the two real poles)
+    # ends in a point that beats r1c2 by more than the margin held out -- which it does with
+    # AVX2 BLAS kernels (0.45 against 0.57 um) and not with AVX-512 (0.63): the drive-train
+    # mode is in both (25.65 Hz)
+    assert ch.outputs == ["error", "tool_position"] and ch.chosen in ("r1c2", "r2c2")
     assert not next(c for c in ch.candidates if c.chosen).on_bound
     f, z = _mode_of(m)
     assert f == pytest.approx(mode["hz"], rel=0.02)          # measured 25.65 Hz (truth 25.66)
