@@ -207,3 +207,13 @@ def test_external_roles_of_every_identified_axis(xy_csv, siso_gui):
         check_externals(gui, ["x"], ["x_err"])
     with pytest.raises(InputError, match="x.cmd"):
         check_externals(gui, ["x"], ["x_cmd"])     # the derived command
+
+
+def test_grid_encoder_axes_are_machine_axes():
+    """A grid encoder (KGM) on axes ('x', 'q') was accepted; align() then blamed the time
+    overlap ("no common motion") instead of the axis name."""
+    from fdid_fmi.align.readers import SensorRecord
+    with pytest.raises(InputError, match="grid encoder measures machine axes"):
+        SensorRecord("k", "grid_encoder", np.arange(20) * 1e-3, np.zeros((20, 2)), axes=("x", "q"))
+    rec = SensorRecord("k", "grid_encoder", np.arange(20) * 1e-3, np.zeros((20, 2)), axes=("x", "y"))
+    assert list(rec.axes) == ["x", "y"]

@@ -90,12 +90,12 @@ class SensorRecord:
         if not self.axes:
             raise InputError("a sensor must provide at least one machine axis", source=self.source,
                              column="axes")
-        if self.kind == "accelerometer":
-            bad_ax = [a for a in self.axes if a not in MACHINE_AXES]
-            if bad_ax:
-                raise InputError(f"an accelerometer provides machine axes among {MACHINE_AXES}, got "
-                                 f"{bad_ax}", source=self.source, column="axes")
-        elif len(self.axes) != 2:
+        bad_ax = [a for a in self.axes if a not in MACHINE_AXES]
+        if bad_ax:
+            what = "an accelerometer provides" if self.kind == "accelerometer" else "a grid encoder measures"
+            raise InputError(f"{what} machine axes among {MACHINE_AXES}, got {bad_ax}",
+                             source=self.source, column="axes")
+        if self.kind == "grid_encoder" and len(self.axes) != 2:
             raise InputError(f"a grid encoder measures two machine axes (plate x, y); got "
                              f"{list(self.axes)}", source=self.source, column="axes")
         if len(set(self.axes)) != len(self.axes):
