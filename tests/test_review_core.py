@@ -231,3 +231,38 @@ def test_report_keeps_both_tables_and_figures_of_one_name():
     assert [f["data"]["v"] for f in d["figures"].values()] == [1, 2]
     h = rep.html()
     assert h.count("id='table-errors'") == 1 and h.count("id='figure-fig'") == 1
+
+
+@pytest.mark.parametrize("where, unit, message", [
+    ("inputs", "m", "command input has unit 'm'; expected mm or deg"),
+    ("inputs", "um", "command input has unit 'um'"),
+    ("outputs", "m", "position output has unit 'm'"),
+])
+def test_port_units_are_the_cnc_convention(where, unit, message):
+    """Port units were free text: a command declared in m was simulated as mm and exported with
+    unit "m" in the modelDescription, 1000x off for any master that believes it."""
+    d = _unit_model_dict()
+    d[where][0]["unit"] = unit
+    with pytest.raises(InputError, match=message):
+        DriveModel.from_dict(d)
+
+
+def test_an_axis_keeps_one_position_unit():
+    d = _unit_model_dict()
+    d["inputs"][0]["unit"] = "deg"                 # a rotary command, position still in mm
+    with pytest.raises(InputError, match=r"axis 'x' mixes position units \['deg', 'mm'\]"):
+        DriveModel.from_dict(d)
+    for p in d["inputs"][:1] + d["outputs"]:
+        p["unit"] = "deg"                          # a rotary axis throughout: accepted
+    assert DriveModel.from_dict(d).inputs[0].unit == "deg"
+
+
+def _unit_model_dict():
+    return {"format": "fdid-fmi-model", "format_version": 2, "kind": "state_space", "Ts": 1e-3,
+            "method": "hand-built", "A": [[0.9]], "B": [[0.1, 1e-4]], "C": [[1.0], [-1.0]],
+            "D": [[0.0, 0.0], [1.0, 0.0]],
+            "inputs": [{"name": "x_cmd", "unit": "mm", "kind": "command", "axis": "x"},
+                       {"name": "x_dnf", "unit": "1", "kind": "friction", "axis": "x",
+                        "params": {"v_tilde": 1.0}}],
+            "outputs": [{"name": "x_pos", "unit": "mm", "kind": "position", "axis": "x"},
+                        {"name": "x_err", "unit": "mm", "kind": "error", "axis": "x"}]}

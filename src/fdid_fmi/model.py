@@ -177,6 +177,7 @@ class DriveModel:
         for prt in self.outputs:
             if prt.kind not in OUTPUT_KINDS:
                 raise InputError(f"output kind '{prt.kind}' not in {OUTPUT_KINDS}", column=prt.name)
+        check_port_units(self)
         for ax in self.axes:
             if self.output_index("position", ax) is None:
                 raise InputError(f"axis '{ax}' has no position output", column=ax)
@@ -548,6 +549,37 @@ def check_ports_and_names(model):
             for key, val in prt.params.items():
                 if isinstance(val, str):
                     check_text(val, f"parameter '{key}'", column=prt.name, max_len=200)
+
+
+# the CNC convention every simulation, every regressor and the FMU's unit definitions assume
+# (fdid_fmi.units): a port in another unit ("m", "um", a typo) would be simulated and exported as
+# if it were in these, 1000x off without a word
+POSITION_UNITS = ("mm", "deg")             # deg: a rotary axis
+PORT_UNITS = {"command": POSITION_UNITS, "position": POSITION_UNITS, "error": POSITION_UNITS,
+              "tool_position": POSITION_UNITS, "velocity": ("mm_s", "deg_s"),
+              "acceleration": ("mm_s2",), "friction": ("1",), "feature": ("1",)}
+
+
+def check_port_units(model):
+    """Every port's unit is the canonical one of its kind (PORT_UNITS; external inputs and
+    ``other`` outputs: any canonical unit of :mod:`fdid_fmi.units`), and an axis's positions,
+    command and errors share one unit."""
+    from .units import CANONICAL
+    canonical = sorted(set(CANONICAL.values()))
+    for ports, what in ((model.inputs, "input"), (model.outputs, "output")):
+        for prt in ports:
+            allowed = PORT_UNITS.get(prt.kind, canonical)
+            if prt.unit not in allowed:
+                raise InputError(f"{prt.kind} {what} has unit '{prt.unit}'; expected "
+                                 f"{' or '.join(allowed) if len(allowed) < 4 else f'one of {allowed}'} "
+                                 f"(models are unscaled, in the CNC convention: mm, mm/s, mm/s^2)",
+                                 column=prt.name)
+    for ax in model.axes:
+        units = {p.unit for p in list(model.inputs) + list(model.outputs)
+                 if p.axis == ax and PORT_UNITS.get(p.kind) is POSITION_UNITS}
+        if len(units) > 1:
+            raise InputError(f"axis '{ax}' mixes position units {sorted(units)}; its command, "
+                             f"positions and errors must share one", column=ax)
 
 
 def _positive(prt, key, unit):
