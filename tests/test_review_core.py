@@ -266,3 +266,18 @@ def _unit_model_dict():
                         "params": {"v_tilde": 1.0}}],
             "outputs": [{"name": "x_pos", "unit": "mm", "kind": "position", "axis": "x"},
                         {"name": "x_err", "unit": "mm", "kind": "error", "axis": "x"}]}
+
+
+def test_validation_json_of_several_ranges_is_json_and_keeps_a_failure():
+    """Several ranges: max() of [1e-15, nan] was 1e-15 (a failed range hidden) and an inf
+    was written as the token Infinity, which JSON readers refuse."""
+    from fdid_fmi.cli.validate import results_json
+    from fdid_fmi.fmu.validate import ValidationResult
+    for bad in (float("nan"), float("inf")):
+        rs = [ValidationResult("a.fmu", max_abs_diff_reference_mm=1e-15),
+              ValidationResult("a.fmu", max_abs_diff_reference_mm=bad, problems=["fmpy: x"])]
+        data = json.loads(json.dumps(results_json(rs), allow_nan=False))
+        assert data["max_abs_diff_reference_mm"] is None and data["ok"] is False
+        assert data["problems"] == ["fmpy: x"] and data["ranges"][1]["max_abs_diff_reference_mm"] is None
+    rs = [ValidationResult("a.fmu", max_abs_diff_reference_mm=v) for v in (1e-15, 3e-15)]
+    assert results_json(rs)["max_abs_diff_reference_mm"] == 3e-15 and results_json(rs)["ok"] is True

@@ -315,3 +315,17 @@ def test_validate_names_an_fmu_sampled_at_another_ts_than_the_reference(fmu_case
     with pytest.raises(InputError, match="two_ms.fmu: the FMU steps at 0.002 s .* at 0.001 s") as e:
         validate_fmu(other, va, model=model)
     assert "binary" not in str(e.value)
+
+
+@pytest.mark.parametrize("given", ["", ","])
+def test_cli_empty_detector_list_is_refused_not_all(small, tmp_path, capsys, given):
+    """``fdid diagnose --detectors ""`` ran every detector (the empty string read as "not given")."""
+    from fdid_fmi.cli import main
+    model, tr, _ = small
+    mpath, csv = tmp_path / "m.json", tmp_path / "train.csv"
+    model.save(mpath)
+    np.savetxt(csv, np.column_stack([tr.t, tr.cmd("x"), tr.act("x")]), delimiter=",",
+               header="t_s,x_cmd_mm,x_mm", comments="", fmt="%.12g")
+    assert main(["diagnose", str(mpath), "--train", str(csv), "--detectors", given]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no detector given" in err[0], err

@@ -41,12 +41,23 @@ def run(args):
         print(r.table())
         print()
     if args.json:
-        if len(results) == 1:
-            data = results[0].to_dict()
-        else:
-            data = {"problems": [p for r in results for p in r.problems],
-                    "max_abs_diff_reference_mm": max(r.max_abs_diff_reference_mm for r in results),
-                    "ranges": [r.to_dict() for r in results]}
-        atomic_write(args.json, json.dumps(data, indent=1))
+        atomic_write(args.json, json.dumps(results_json(results), indent=1, allow_nan=False))
         print(f"results written to {args.json}")
     return 0 if all(r.ok for r in results) else 1
+
+
+def results_json(results):
+    """JSON data of the validation of one range (its result) or several: every problem, the
+    worst FMU-vs-reference difference (null when a range's is not a finite number: max() let a
+    NaN of a later range pass, and an inf was written as the non-JSON token Infinity), ok, and
+    each range's result."""
+    import numpy as np
+
+    from ..model import jsonable
+    if len(results) == 1:
+        return results[0].to_dict()
+    worst = [r.max_abs_diff_reference_mm for r in results]
+    return jsonable({"problems": [p for r in results for p in r.problems],
+                     "max_abs_diff_reference_mm": max(worst) if np.all(np.isfinite(worst)) else None,
+                     "ok": all(r.ok for r in results),
+                     "ranges": [r.to_dict() for r in results]})

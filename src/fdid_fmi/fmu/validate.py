@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..model import DriveModel, load_model
+from ..model import DriveModel, jsonable, load_model
 from ..trace import Trace
 
 
@@ -82,7 +82,7 @@ class ValidationResult:
     def to_dict(self):
         d = asdict(self)
         d["ok"] = self.ok
-        return _finite(d)
+        return jsonable(d)
 
     def table(self):
         """Markdown table of the comparison."""
@@ -106,16 +106,6 @@ class ValidationResult:
         for p in self.problems:
             lines.append(f"problem: {p}")
         return "\n".join(lines)
-
-
-def _finite(obj):
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [_finite(v) for v in obj]
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return None
-    return obj
 
 
 # --------------------------------------------------------------------------- FMU driver
