@@ -2,7 +2,8 @@
 # One entry point for a fresh machine (Python 3.11, gcc, apt):
 #   ./run.sh demo   set up, then trace -> identify -> FMU -> validate -> report
 #   ./run.sh test   set up, then the whole test suite
-#   ./run.sh bench  set up, then the benchmarks (JSON + table in benchmarks/results/)
+#   ./run.sh bench  set up, then the benchmarks (JSON + table in benchmarks/results/);
+#                   ./run.sh bench NAME [ARGS] runs benchmarks/bench_NAME.py alone
 # Everything the project needs is installed here: the venv, the Python packages
 # and, through apt, the system packages the tests use (TBB for the ecos engine,
 # valgrind, the mingw-w64 cross compiler for win64 FMU binaries).
@@ -57,7 +58,19 @@ case "$cmd" in
         ;;
     bench)
         setup test
-        for b in benchmarks/bench_*.py; do "$VENV/bin/python" "$b" "$@"; done
+        # ./run.sh bench            every benchmark with its defaults
+        # ./run.sh bench NAME ARGS  one benchmark (benchmarks/bench_NAME.py) with its own options;
+        #                           options differ between scripts, so they are never given to all
+        if [ $# -eq 0 ]; then
+            for b in benchmarks/bench_*.py; do "$VENV/bin/python" "$b"; done
+        elif [ -f "benchmarks/bench_$1.py" ]; then
+            b=$1
+            shift
+            "$VENV/bin/python" "benchmarks/bench_$b.py" "$@"
+        else
+            echo "run.sh: no benchmark '$1'; one of: $(ls benchmarks/bench_*.py | sed 's#.*/bench_##; s#\.py$##' | tr '\n' ' ')" >&2
+            exit 2
+        fi
         ;;
     *)
         echo "usage: ./run.sh demo|test|bench [args]" >&2
