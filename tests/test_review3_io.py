@@ -197,7 +197,7 @@ def test_cli_external_own_channel_is_refused(capsys, xy_csv, tmp_path, channel, 
 
 
 def test_external_roles_of_every_identified_axis(xy_csv, siso_gui):
-    from fdid_fmi.cli.identify import check_externals
+    from fdid_fmi.identify.ranges import check_externals
     tr = read_trace(xy_csv)
     with pytest.raises(InputError, match="y_mm.*y.act of the identified axes"):
         check_externals(tr, ["x", "y"], ["y_mm"])
@@ -217,3 +217,13 @@ def test_grid_encoder_axes_are_machine_axes():
         SensorRecord("k", "grid_encoder", np.arange(20) * 1e-3, np.zeros((20, 2)), axes=("x", "q"))
     rec = SensorRecord("k", "grid_encoder", np.arange(20) * 1e-3, np.zeros((20, 2)), axes=("x", "y"))
     assert list(rec.axes) == ["x", "y"]
+
+
+def test_api_external_own_channel_is_refused(xy_csv):
+    """The same check in the identification engine (the CLI's was the only one): identify_mimo
+    with an axis's own measured position as external input predicted it from itself."""
+    from fdid_fmi.identify import identify_mimo, mimo_structure
+    tr = read_trace(xy_csv)
+    st = mimo_structure(("x",), ("error",), 1, 1, externals=[tr.roles["x"]["act"]], same_sample="hold")
+    with pytest.raises(InputError, match=f"external input {tr.roles['x']['act']}: this channel is x.act"):
+        identify_mimo(tr, st, maxiter=1)

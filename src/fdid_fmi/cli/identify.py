@@ -268,32 +268,6 @@ def structure_is_auto(args):
     return not pinned
 
 
-def check_externals(trace, axes, externals):
-    """Refuse an ``--external`` channel that is a role of an identified axis.
-
-    An external input is a measured signal from outside the drive (``pulses_N``, another
-    axis's command). The identified axes' own channels -- command, measured or tool-side
-    position, velocity, acceleration, current (``trace.roles``) and tracking error
-    (``meta["error_channels"]``) -- are the model's command or what it predicts: as an input,
-    the model would predict the measured position from the measured position (a free run of
-    0.05 um RMS on a 370 um error) and could not run without the measurement it replaces.
-    """
-    used = {}
-    for ax in axes:
-        for role, ch in trace.roles.get(ax, {}).items():
-            used.setdefault(ch, f"{ax}.{role}")
-        ch = (trace.meta.get("error_channels") or {}).get(ax)
-        if ch is not None:
-            used.setdefault(ch, f"{ax}.err (tracking error)")
-    for ch in externals:
-        if ch in used:
-            raise InputError(f"--external {ch}: this channel is {used[ch]} of the identified axes "
-                             f"{list(axes)} (their command, or a measurement of what the model "
-                             f"predicts), not an input from outside them; give a channel such as "
-                             f"pulses_N or a command of an axis not identified (to model axes "
-                             f"together: --coupled)", source=trace.source, column=ch)
-
-
 def identify_from_args(trace, args, progress=True):
     """Run the identification the arguments ask for; returns the model."""
     from .. import identify as idf
@@ -302,7 +276,8 @@ def identify_from_args(trace, args, progress=True):
     if not axes:
         raise InputError("the trace has no axis with both 'cmd' and 'act' channels; use --map",
                          source=trace.source)
-    check_externals(trace, axes, getattr(args, "external", None) or ())
+    from ..identify.ranges import check_externals
+    check_externals(trace, axes, getattr(args, "external", None) or (), what="--external")
     if args.method == "quasi-static":
         return idf.identify_quasi_static(pieces, axes, cutoff_hz=args.cutoff_hz, order=args.filter_order)
     if args.method == "full-ls":

@@ -19,7 +19,7 @@ from .. import kernel
 from ..errors import InputError
 from ..signals import measured_velocity
 from . import regressors as rg
-from .ranges import training_ranges
+from .ranges import check_externals, training_ranges
 from .structure import OUTPUT_SOURCES, Structure
 
 
@@ -64,8 +64,10 @@ class LSProblem:
     def __init__(self, traces, structure: Structure):
         structure.check()
         self.s = structure
-        traces = training_ranges(traces, structure.axes,
-                                 [ins.channel for ins in structure.inputs if ins.kind == "external"])
+        externals = [ins.channel for ins in structure.inputs if ins.kind == "external"]
+        traces = training_ranges(traces, structure.axes, externals)
+        for tr in traces:
+            check_externals(tr, structure.axes, externals)
         self.traces = traces
         self.Ts = traces[0].Ts
         self.n = structure.order

@@ -44,3 +44,30 @@ def training_ranges(traces, axes=(), channels=(), roles=ROLES_READ):
                 raise InputError("contains NaN or inf", source=tr.source, column=name,
                                  row=int(np.argmax(bad)) + 1)
     return traces
+
+
+def check_externals(trace, axes, externals, what="external input"):
+    """Refuse an external-input channel that is a role of an identified axis (``what`` names
+    the input in the message: the CLI's ``--external``).
+
+    An external input is a measured signal from outside the drive (``pulses_N``, another
+    axis's command). The identified axes' own channels -- command, measured or tool-side
+    position, velocity, acceleration, current (``trace.roles``) and tracking error
+    (``meta["error_channels"]``) -- are the model's command or what it predicts: as an input,
+    the model would predict the measured position from the measured position (a free run of
+    0.05 um RMS on a 370 um error) and could not run without the measurement it replaces.
+    """
+    used = {}
+    for ax in axes:
+        for role, ch in trace.roles.get(ax, {}).items():
+            used.setdefault(ch, f"{ax}.{role}")
+        ch = (trace.meta.get("error_channels") or {}).get(ax)
+        if ch is not None:
+            used.setdefault(ch, f"{ax}.err (tracking error)")
+    for ch in externals:
+        if ch in used:
+            raise InputError(f"{what} {ch}: this channel is {used[ch]} of the identified axes "
+                             f"{list(axes)} (their command, or a measurement of what the model "
+                             f"predicts), not an input from outside them; give a channel such as "
+                             f"pulses_N or a command of an axis not identified (to model axes "
+                             f"together: --coupled)", source=trace.source, column=ch)
