@@ -281,3 +281,18 @@ def test_validation_json_of_several_ranges_is_json_and_keeps_a_failure():
         assert data["problems"] == ["fmpy: x"] and data["ranges"][1]["max_abs_diff_reference_mm"] is None
     rs = [ValidationResult("a.fmu", max_abs_diff_reference_mm=v) for v in (1e-15, 3e-15)]
     assert results_json(rs)["max_abs_diff_reference_mm"] == 3e-15 and results_json(rs)["ok"] is True
+
+
+def test_combine_owns_its_ports_and_records():
+    """combine() shared Port objects and record dicts with its blocks: a change to the combined
+    model's friction port or identification record changed the block it came from."""
+    a, b = DriveModel.from_dict(_unit_model_dict()), DriveModel.from_dict(_renamed_y(_unit_model_dict()))
+    a.identification = {"real_hz": [10.0]}
+    both = DriveModel.combine([a, b])
+    both.inputs[1].params["v_tilde"] = 5.0
+    both.identification["blocks"][0]["real_hz"].append(20.0)
+    assert a.inputs[1].params["v_tilde"] == 1.0 and a.identification == {"real_hz": [10.0]}
+
+
+def _renamed_y(d):
+    return json.loads(json.dumps(d).replace('"x_', '"y_').replace('"axis": "x"', '"axis": "y"'))

@@ -23,6 +23,7 @@ Models are saved as versioned JSON (:meth:`DriveModel.save` / :func:`load_model`
 """
 from __future__ import annotations
 
+import copy
 import json
 import re
 import unicodedata
@@ -303,15 +304,18 @@ class DriveModel:
         B = block_diag(*[m.B for m in models])
         C = block_diag(*[m.C for m in models])
         D = block_diag(*[m.D for m in models])
+        # copies: a port, record or effect shared with a block would change with it (validate()
+        # itself fills in a friction level), and the blocks with a later change of the combination
+        own = copy.deepcopy
         return cls(Ts=Ts, A=A, B=B, C=C, D=D,
-                   inputs=[p for m in models for p in m.inputs],
-                   outputs=[p for m in models for p in m.outputs],
+                   inputs=own([p for m in models for p in m.inputs]),
+                   outputs=own([p for m in models for p in m.outputs]),
                    method=method or "+".join(sorted(set(m.method for m in models))),
                    poles=[p for m in models for p in m.poles],
-                   identification={"blocks": [m.identification for m in models]},
-                   metrics={"blocks": [m.metrics for m in models]},
-                   effects=[e for m in models for e in m.effects],
-                   provenance={"blocks": [m.provenance for m in models]})
+                   identification={"blocks": own([m.identification for m in models])},
+                   metrics={"blocks": own([m.metrics for m in models])},
+                   effects=own([e for m in models for e in m.effects]),
+                   provenance={"blocks": own([m.provenance for m in models])})
 
 
 @dataclass
