@@ -59,6 +59,12 @@ from ..errors import InputError
 FLEET_OPTIONS = ("diagnose", "detectors", "fmi")
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 _ENTRY_KEYS = {"machine", "axis", "traces", "trace", "map", "units", "options"}
+# machine and axis become file names (entries/<machine>__<axis>/, <machine>_<axis>.fmu): a file
+# name is at most 255 bytes, and one entry's too long name must not stop the others
+MAX_NAME = 100
+# fdid identify options an entry cannot set: the fleet writes the model into the entry's folder
+_NOT_OPTIONS = {"output": "the fleet writes the model to entries/<machine>__<axis>/model.json",
+                "trace": "the traces are the entry's 'traces'"}
 
 __all__ = ["EntrySpec", "Manifest", "load_manifest", "parse_manifest_text", "entry_hash", "software_version",
            "identify_args", "FLEET_OPTIONS"]
@@ -155,13 +161,35 @@ def identify_args(trace_path, spec: EntrySpec):
     return args
 
 
-def _option_tokens(options: dict, where):
+def _repeatable_options():
+    """Destinations of the ``fdid identify`` options that may be given several times."""
+    sub = next(a for a in _identify_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    return {a.dest for a in sub.choices["identify"]._actions
+            if isinstance(a, (argparse._AppendAction, argparse._ExtendAction))}
+
+
+def _option_tokens(options: dict, where, axis=None):
     """``fdid identify`` tokens from an options table (fleet options removed)."""
     tokens = []
+    repeatable = None
     for k, v in options.items():
         if k in FLEET_OPTIONS:
             continue
+        if k in _NOT_OPTIONS:
+            raise InputError(f"option '{k}' cannot be set in a manifest ({_NOT_OPTIONS[k]})",
+                             source=where, column=k)
+        if k == "axis" and axis is not None:
+            given = [v] if isinstance(v, str) else list(v) if isinstance(v, (list, tuple)) else [v]
+            if axis not in [str(a) for a in given]:
+                raise InputError(f"option 'axis' = {v!r} does not include the entry's axis '{axis}' "
+                                 f"(leave it out: the entry identifies its own axis)", source=where, column=k)
         flag = "--" + str(k).replace("_", "-")
+        if isinstance(v, (list, tuple)) and len(v) > 1:
+            if repeatable is None:
+                repeatable = _repeatable_options()
+            if k not in repeatable:     # argparse would keep the last value without a word
+                raise InputError(f"option '{k}' takes one value, got the list {list(v)!r}",
+                                 source=where, column=k)
         values = v if isinstance(v, (list, tuple)) else [v]
         for item in values:
             if isinstance(item, bool):
@@ -185,6 +213,10 @@ def _fleet_options(options, where):
     if det is not None:
         if isinstance(det, str):
             det = [d.strip() for d in det.split(",") if d.strip()]
+        if not isinstance(det, (list, tuple)) or not det:
+            raise InputError(f"'detectors' must name one or more detector families (a list or a comma "
+                             f"list), got {options.get('detectors')!r}; leave it out for all",
+                             source=where, column="detectors")
         from ..diagnose.loop import DETECTORS
         bad = [d for d in det if d not in DETECTORS]
         if bad:
@@ -208,6 +240,9 @@ def _build_entry(raw: dict, defaults: dict, base: Path, row: int, where: str) ->
             if not _NAME.match(value):
                 raise InputError(f"'{value}' is not a usable {name} name (letters, digits, _ . -)",
                                  source=where, column=name)
+            if len(value) > MAX_NAME:
+                raise InputError(f"the {name} name is {len(value)} characters long; at most {MAX_NAME} "
+                                 f"(it becomes a file name)", source=where, column=name)
         unknown = sorted(set(raw) - _ENTRY_KEYS)
         if unknown:
             raise InputError(f"unknown key(s) {unknown} in entry {row}; expected {sorted(_ENTRY_KEYS)}",
@@ -218,7 +253,13 @@ def _build_entry(raw: dict, defaults: dict, base: Path, row: int, where: str) ->
         if not traces or not all(isinstance(t, str) for t in traces):
             raise InputError(f"entry {row} needs 'traces' (a list of trace files)", source=where,
                              column="traces")
+        for t in traces:
+            if not t.strip() or "\0" in t:
+                raise InputError(f"entry {row}: {t!r} is not a trace file name", source=where, column="traces")
         paths = tuple(str((base / t).resolve()) if not Path(t).is_absolute() else t for t in traces)
+        if len(set(paths)) < len(paths):       # a held-out trace that is the training trace
+            raise InputError(f"entry {row} lists a trace file twice ({list(traces)})", source=where,
+                             column="traces")
         for name in ("map", "units", "options"):     # checked before they are merged
             for what, tbl in (("the entry's", raw.get(name) or {}), ("[defaults]'", defaults.get(name, {}))):
                 if not isinstance(tbl, dict):
@@ -230,7 +271,7 @@ def _build_entry(raw: dict, defaults: dict, base: Path, row: int, where: str) ->
         mapping = {str(k): str(v) for k, v in mapping.items()}
         units = {str(k): str(v) for k, v in units.items()}
         diagnose, det, fmi = _fleet_options(options, where)
-        spec = EntrySpec(machine, axis, paths, mapping, units, _option_tokens(options, where), diagnose,
+        spec = EntrySpec(machine, axis, paths, mapping, units, _option_tokens(options, where, axis), diagnose,
                          det, fmi, row)
         # the fdid identify parser checks option names and values (not the files)
         from ..cli.mapping import parse_mapping, parse_units
@@ -243,7 +284,7 @@ def _build_entry(raw: dict, defaults: dict, base: Path, row: int, where: str) ->
         parse_units(args.unit)
         return spec
     except InputError as exc:
-        return EntrySpec(machine or f"entry{row}", axis or "?", row=row, error=_one_line(exc))
+        return EntrySpec(machine or f"entry{row}", axis or f"?{row}", row=row, error=_one_line(exc))
 
 
 def _one_line(exc):
@@ -256,6 +297,9 @@ def _kv_tokens(text, where, column):
         if "=" not in tok:
             raise InputError(f"'{tok}' is not KEY=VALUE", source=where, column=column)
         k, v = tok.split("=", 1)
+        if k.strip() in out:             # the later one would win without a word
+            raise InputError(f"'{k.strip()}' is given twice ({out[k.strip()]} and {v.strip()})",
+                             source=where, column=column)
         out[k.strip()] = v.strip()
     return out
 
@@ -278,6 +322,8 @@ def parse_manifest_text(text, fmt, base=".", source="<manifest>") -> Manifest:
                 for the same machine/axis); problems of one entry go to its ``error`` instead.
     """
     base = Path(base)
+    if text.startswith("\ufeff"):      # a byte-order mark (a spreadsheet's "CSV UTF-8")
+        text = text[1:]
     raws, defaults, thresholds = [], {}, {}
     if fmt == "toml":
         try:
@@ -297,14 +343,28 @@ def parse_manifest_text(text, fmt, base=".", source="<manifest>") -> Manifest:
                              f"{sorted(defaults) if isinstance(defaults, dict) else type(defaults).__name__}",
                              source=source, column="defaults")
         thresholds = doc.get("thresholds", {})
+        if not isinstance(thresholds, dict):
+            raise InputError(f"[thresholds] must be a table of NAME = NUMBER, got {type(thresholds).__name__}",
+                             source=source, column="thresholds")
         rows = list(range(1, len(raws) + 1))
     elif fmt == "csv":
         reader = csv.DictReader(io.StringIO(text))
         if not reader.fieldnames or not {"machine", "axis"} <= {f.strip() for f in reader.fieldnames}:
             raise InputError("the CSV manifest needs a header with at least machine, axis, traces",
                              source=source)
+        names = [f.strip() for f in reader.fieldnames]
+        twice = sorted({f for f in names if names.count(f) > 1 and f})
+        if twice:                        # DictReader would keep the last column of a name
+            raise InputError(f"the header names the column(s) {twice} twice", source=source, column=twice[0])
         rows = []
         for rec in reader:
+            extra = rec.pop(None, None)  # fields beyond the header (DictReader's restkey)
+            if extra is not None and any(str(x).strip() for x in extra):
+                rows.append(reader.line_num)
+                raws.append({"machine": rec.get("machine"), "axis": rec.get("axis"),
+                             "_bad": f"line {reader.line_num} has {len(names) + len(extra)} fields, the header "
+                                     f"{len(names)} (quote a field holding a comma)"})
+                continue
             rec = {(k or "").strip(): (v or "").strip() for k, v in rec.items()}
             if not any(rec.values()):
                 continue
@@ -330,7 +390,7 @@ def parse_manifest_text(text, fmt, base=".", source="<manifest>") -> Manifest:
         if not isinstance(raw, dict):
             raise InputError(f"entry {row} is not a table", source=source)
         if "_bad" in raw:
-            entries.append(EntrySpec(str(raw.get("machine") or f"entry{row}"), str(raw.get("axis") or "?"),
+            entries.append(EntrySpec(str(raw.get("machine") or f"entry{row}"), str(raw.get("axis") or f"?{row}"),
                                      row=row, error=" ".join(raw["_bad"].split())))
             continue
         entries.append(_build_entry(raw, defaults, base, row, source))
@@ -354,7 +414,7 @@ def load_manifest(path) -> Manifest:
     if fmt is None:
         raise InputError(f"a manifest is .toml or .csv, not '{p.suffix}'", source=str(p))
     try:
-        text = p.read_text(encoding="utf-8")
+        text = p.read_text(encoding="utf-8-sig")     # a spreadsheet's "CSV UTF-8" starts with a BOM
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"cannot read ({exc})", source=str(p)) from None
     return parse_manifest_text(text, fmt, base=p.parent, source=str(p))
@@ -375,10 +435,23 @@ def file_digest(path):
 
 
 # the parts of the package an entry's results depend on (reading, identification, model and
-# simulation, FMU generation and validation, diagnosis, the fleet itself)
+# simulation, FMU generation and validation, diagnosis, the fleet itself); kernel.py and the C of
+# the compiled extension (kernel_ext: the pole search's regressor filter) run in identification
+# and simulation; cli/argtypes.py parses the option values; report.py writes entry.html
 PIPELINE_SOURCES = ("io", "identify", "fmu", "fmu_templates", "diagnose", "fleet", "trace.py", "units.py",
                     "signals.py", "model.py", "simulate.py", "metrics.py", "errors.py", "outputs.py",
-                    "cli/identify.py", "cli/mapping.py")
+                    "kernel.py", "kernel_ext", "report.py",
+                    "cli/identify.py", "cli/mapping.py", "cli/argtypes.py")
+
+
+def pipeline_files():
+    """The source files :func:`software_version` hashes (absolute paths, sorted per part)."""
+    root = Path(__file__).resolve().parents[1]
+    files = []
+    for part in PIPELINE_SOURCES:
+        p = root / part
+        files += [p] if p.is_file() else sorted(p.rglob("*"))
+    return [f for f in files if f.is_file() and f.suffix in (".py", ".c", ".h") and "__pycache__" not in f.parts]
 
 
 def software_version() -> str:
@@ -389,14 +462,9 @@ def software_version() -> str:
     from .. import __version__
     root = Path(__file__).resolve().parents[1]
     h = hashlib.sha256()
-    files = []
-    for part in PIPELINE_SOURCES:
-        p = root / part
-        files += [p] if p.is_file() else sorted(p.rglob("*"))
-    for f in files:
-        if f.is_file() and f.suffix in (".py", ".c", ".h") and "__pycache__" not in f.parts:
-            h.update(f.relative_to(root).as_posix().encode())
-            h.update(f.read_bytes())
+    for f in pipeline_files():
+        h.update(f.relative_to(root).as_posix().encode())
+        h.update(f.read_bytes())
     return f"{__version__}+src.{h.hexdigest()[:12]}"
 
 

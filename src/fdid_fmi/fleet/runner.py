@@ -42,7 +42,7 @@ from ..errors import InputError
 from ..outputs import remove_orphan_temp_files
 from .compare import Thresholds
 from .manifest import Manifest, entry_hash, file_digest, load_manifest, software_version
-from .work import ENTRY_FILE, EntryResult, PreviousModel, WorkItem, run_entry
+from .work import ENTRY_FILE, EntryResult, PreviousModel, WorkItem, outputs_intact, run_entry
 
 FLEET_FILE = "fleet.json"
 FLEET_HTML = "fleet.html"
@@ -156,7 +156,16 @@ def load_fleet_result(folder) -> FleetResult:
         d = json.loads(f.read_text())
     except (OSError, ValueError) as exc:
         raise InputError(f"cannot read the fleet result ({exc})", source=str(f)) from None
-    return FleetResult.from_dict(d, source=str(f))
+    if not isinstance(d, dict):
+        raise InputError(f"not a fleet result (a JSON {type(d).__name__})", source=str(f))
+    try:
+        return FleetResult.from_dict(d, source=str(f))
+    except InputError:
+        raise
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise InputError(f"a fleet result this version cannot read ({type(exc).__name__}: {exc}); "
+                         f"expected fleet.json format {FORMAT} {FORMAT_VERSION} as fdid fleet run writes it",
+                         source=str(f)) from None
 
 
 # ----------------------------------------------------------------------------- planning
@@ -203,7 +212,7 @@ def _finished(entry_dir: Path, input_hash, compare_key):
     if res.ok:
         if res.compare_key != compare_key:
             return None
-        if not all((entry_dir / f).is_file() for f in res.outputs.values()):
+        if not outputs_intact(entry_dir, res):
             return None
         return res
     return res if res.deterministic else None
@@ -320,11 +329,11 @@ def run_fleet(manifest, out, previous=None, scheduler=None, workers=None, client
         prev = prev_models.get(spec.key) if spec.error is None else None
         ck = _compare_key(h, prev, thresholds)
         edir = out / "entries" / spec.dirname
-        done = _finished(edir, h, ck)
-        if spec.error is not None:
+        if spec.error is not None:      # (its names may not be usable as a folder)
             results[spec.key] = EntryResult(spec.machine, spec.axis, "failed", h, error=spec.error,
                                             deterministic=True)
             continue
+        done = _finished(edir, h, ck)
         if done is not None:
             results[spec.key] = done
             skipped.append(spec.key)

@@ -125,6 +125,9 @@ class EntryResult:
     finished_utc : str
     reused_build : bool       identification, export, validation and diagnosis were reused from a
                               finished run with the same inputs (only the comparison was redone)
+    output_digests : dict     name -> sha256 of each output file as this result wrote it: a file
+                              that another (killed) run has since replaced is not taken as this
+                              result's
     """
 
     machine: str
@@ -146,6 +149,7 @@ class EntryResult:
     worker: str = ""
     finished_utc: str = ""
     reused_build: bool = False
+    output_digests: dict = field(default_factory=dict)
 
     @property
     def key(self):
@@ -244,8 +248,21 @@ def _save_model(model, path):
         model.save(tmp)
 
 
+def outputs_intact(entry_dir, res: EntryResult):
+    """Every output file of ``res`` is present with the bytes ``res`` wrote (its digest).
+
+    A worker killed while rebuilding an entry for other inputs leaves the new model or FMU beside
+    the old ``entry.json``; with the old inputs back, that mixture must not pass as done.
+    """
+    entry_dir = Path(entry_dir)
+    if set(res.output_digests) != set(res.outputs):
+        return False
+    return all((entry_dir / f).is_file() and file_digest(entry_dir / f) == res.output_digests[name]
+               for name, f in res.outputs.items())
+
+
 def _existing(entry_dir: Path, input_hash):
-    """A finished, successful result with the same inputs whose output files are all present."""
+    """A finished, successful result with the same inputs whose output files are all intact."""
     p = entry_dir / ENTRY_FILE
     if not p.is_file():
         return None
@@ -255,7 +272,7 @@ def _existing(entry_dir: Path, input_hash):
         return None
     if res.input_hash != input_hash or not res.ok:
         return None
-    if not all((entry_dir / f).is_file() for f in res.outputs.values()):
+    if not outputs_intact(entry_dir, res):
         return None
     return res
 
@@ -316,6 +333,7 @@ def run_entry(item: WorkItem) -> EntryResult:
         if out.is_dir() or res.status == "ok":
             if res.status == "ok":
                 _entry_report(res, out)
+                res.output_digests = {name: file_digest(out / f) for name, f in res.outputs.items()}
             _save_json(out / ENTRY_FILE, res.to_dict())
     except FdidError as exc:       # cannot write the result: report it, the rerun retries
         res.status, res.error, res.deterministic = "failed", _one_line(str(exc)), False
