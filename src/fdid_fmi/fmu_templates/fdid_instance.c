@@ -34,13 +34,22 @@ typedef struct {
 
 /* ------------------------------------------------------------------ logging */
 void fdid_log(const FdidInstance *I, int status, int cat, const char *fmt, ...) {
-    char buf[1024];
+    char buf[1024], esc[2048];
+    size_t i, k = 0;
     va_list ap;
     if (!I || !I->api->emit || !I->log_on[cat]) return;
     va_start(ap, fmt);
     vsnprintf(buf, sizeof buf, fmt, ap);
     va_end(ap);
-    I->api->emit(I, status, CATEGORY_NAMES[cat], buf);
+    /* '#' opens a variable reference (#r12# in FMI 2, #12# in FMI 3) that masters such as FMI
+     * Library expand; a literal '#' is written "##" (FMI 2.0.4 section 2.1.5, FMI 3.0 section
+     * 2.3.1, logMessage). Strings from the master (a GUID, a log category) may hold one. */
+    for (i = 0; buf[i] && k + 2 < sizeof esc; i++) {
+        if (buf[i] == '#') esc[k++] = '#';
+        esc[k++] = buf[i];
+    }
+    esc[k] = '\0';
+    I->api->emit(I, status, CATEGORY_NAMES[cat], esc);
 }
 
 int fdid_fail(FdidInstance *I, const char *fmt, ...) {
@@ -302,6 +311,14 @@ static const char *snapshot_content_error(const Snapshot *s) {
         return "the FMU time is not finite";
     if (!is_flag(s->flags.init_dirty) || !is_flag(s->flags.out_dirty) || !is_flag(s->flags.started))
         return "a flag is neither 0 nor 1";
+    /* what the FMU itself can produce: steps are only counted by doStep (which sets started),
+     * the initial state is only recomputed before the first doStep, and there is no doStep
+     * before ExitInitializationMode. Otherwise the next output evaluation would re-initialize
+     * and set the FMU time back to the start time while the master's time runs on. */
+    if (!s->flags.started && s->flags.steps != 0) return "steps are counted but no doStep was taken";
+    if (s->flags.started && s->flags.init_dirty) return "the initial state is to be recomputed after a doStep";
+    if (s->flags.started && (s->mode == FDID_ST_INSTANTIATED || s->mode == FDID_ST_INIT))
+        return "a doStep was taken before initialization ended";
     for (i = 0; i < s->nbuf; i++)
         if (!fdid_is_finite(buf[i])) return "a state variable is NaN or infinite";
     /* the views only read here */
@@ -461,5 +478,13 @@ int fdid_do_step(FdidInstance *I, const char *fn, double t_comm, double h) {
                          I->stop_time);
     for (k = 0; k < nsteps; k++) fdid_advance(&I->s);
     I->s.f.started = 1;
+    /* a step that leaves the model's state non-finite failed: report it here, not first at a
+     * later fmi*Get (a master that reads other outputs, or none, would go on with OK), and never
+     * hand out an FMU state (GetFMUstate) that SetFMUstate refuses. O(state size) per call. */
+    for (k = 0; k < (long long)I->s.nbuf; k++)
+        if (!fdid_is_finite(I->s.buf[k]))
+            return fdid_fail(I, "%s: the model state is not finite after the step to %.17g s (the inputs or "
+                                "parameters drive the model out of the range of doubles); restore an "
+                                "earlier FMU state or reset", fn, fdid_time(I));
     return FDID_OK;
 }
