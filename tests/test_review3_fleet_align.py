@@ -211,3 +211,94 @@ def test_outputs_replaced_by_a_killed_run_are_not_taken_as_done(built_entry):
     finally:
         model.write_bytes(original)
     assert _finished(edir, h, None) is not None
+
+
+# ----------------------------------------------------------------------------- alignment
+@pytest.fixture(scope="module")
+def raw_run(tmp_path_factory):
+    """A 3.5 s two-axis run (flexible_y) with an accelerometer and a grid encoder on their own clocks."""
+    from fdid_fmi.virtual import presets, simulate_machine
+    from fdid_fmi.virtual import trajectories as tj
+    from fdid_fmi.virtual.sensors import write_raw_run
+    cfg = presets.flexible_y()
+    sim = simulate_machine(cfg, tj.linear_moves(n_moves=8, axes=("x", "y"), Ts=cfg.Ts, seed=4, d_max=20.0),
+                           seed=4)
+    return write_raw_run(sim, tmp_path_factory.mktemp("raw"))
+
+
+def _with_column_negated(src, dst, col):
+    lines = Path(src).read_text().splitlines()
+    out = [lines[0]]
+    for ln in lines[1:]:
+        cells = ln.split(",")
+        cells[col] = repr(-float(cells[col]))
+        out.append(",".join(cells))
+    Path(dst).write_text("\n".join(out) + "\n")
+    return dst
+
+
+@pytest.mark.parametrize("how", ["swapped", "negated"])
+def test_mirrored_grid_encoder_is_refused(raw_run, tmp_path, how):
+    # swapped columns (or axes=y,x, or one axis counting the other way) were aligned with a
+    # -53 deg "plate angle" and tool positions 6.4 mm RMS off the encoders, reported as success
+    from fdid_fmi.align import align, read_grid_encoder
+    from fdid_fmi.io import read_trace
+    src = raw_run["sensors"]["kgm"]
+    if how == "swapped":
+        rec = read_grid_encoder(src, columns=["kgm_y_um", "kgm_x_um"])
+    else:
+        rec = read_grid_encoder(_with_column_negated(src, tmp_path / "kgm.csv", 2))
+    with pytest.raises(InputError, match="mirror image") as ei:
+        align(read_trace(raw_run["controller"]), [rec])
+    assert "kgm" in str(ei.value) and "\n" not in str(ei.value)
+
+
+def test_mirrored_accelerometer_is_refused(raw_run):
+    # ay, ax, az (a left-handed frame): the x/y acceleration came out right, but the calibration
+    # held gamma 179 deg and a "bias" of 2 g (1.97e4 mm/s^2) along z
+    from fdid_fmi.align import align, read_accelerometer
+    from fdid_fmi.io import read_trace
+    rec = read_accelerometer(raw_run["sensors"]["acc_tool"], columns=["ay_m_s2", "ax_m_s2", "az_m_s2"])
+    with pytest.raises(InputError, match="mirror image"):
+        align(read_trace(raw_run["controller"]), [rec])
+
+
+@pytest.mark.parametrize("kw,words", [({"iterations": 0}, "iterations"), ({"window_s": 0.0}, "window_s"),
+                                      ({"window_s": float("nan")}, "window_s"),
+                                      ({"lowpass_hz": "5"}, "lowpass_hz"),
+                                      ({"min_overlap_s": float("nan")}, "min_overlap_s")])
+def test_align_parameters_checked(raw_run, kw, words):
+    # iterations=0: KeyError 'residual_s'; window_s=nan: ValueError; window_s=0 ran and returned an
+    # offset 1.2 ms off (truth -0.413 s: -0.4117); lowpass '5': TypeError; min_overlap nan: accepted
+    from fdid_fmi.align import align, read_grid_encoder
+    from fdid_fmi.io import read_trace
+    with pytest.raises(InputError, match=words):
+        align(read_trace(raw_run["controller"]), [read_grid_encoder(raw_run["sensors"]["kgm"])], **kw)
+
+
+def test_sensor_setting_given_twice_is_refused():
+    # unit=g unit=m_s2 read the file in m/s^2 without a word
+    from fdid_fmi.cli.align import parse_sensor
+    with pytest.raises(InputError, match="given twice"):
+        parse_sensor(["acc.csv", "unit=g", "unit=m_s2"], "accelerometer")
+
+
+def test_sensor_file_in_a_folder_with_an_equals_sign(tmp_path):
+    # .../date=2026-11-23/acc.csv was taken for a setting: "unknown setting '.../date'"
+    from fdid_fmi.cli.align import parse_sensor
+    d = tmp_path / "date=2026-11-23"
+    d.mkdir()
+    f = d / "acc.csv"
+    f.write_text("t_s,ax_g,ay_g,az_g\n")
+    kw = parse_sensor([str(f), "axes=x,y", "unit=g"], "accelerometer")
+    assert kw["path"] == str(f) and kw["axes"] == ("x", "y") and kw["unit"] == "g"
+    with pytest.raises(InputError, match="unknown setting 'bogus'"):
+        parse_sensor([str(f), "bogus=1"], "accelerometer")
+
+
+def test_unknown_uncertainty_is_printed_as_unknown():
+    # the JSON wrote a NaN uncertainty as null, the printed table as "± nan" (a number)
+    from fdid_fmi.align.result import Estimate
+    assert Estimate("timing", "time_offset", 1.5, float("nan"), "s", "m").text() == "1.5 s"
+    assert Estimate("gravity_bias", "c", [1.0, 2.0], [float("nan"), 0.5], "mm/s^2", "m").text() == \
+        "(1, 2) ± (?, 0.5) mm/s^2"

@@ -189,6 +189,21 @@ def rotation_from_directions(dirs, n_mc=400, seed=0):
     return rot, ang, draws.std(axis=0)
 
 
+def mirror_residual(P, Q):
+    """RMS residual (mm) of the best *mirrored* plate fit: machine p = M p_kgm + o with M
+    orthogonal and det M = -1 (2-D Procrustes with a reflection).
+
+    A grid encoder whose x, y columns are swapped, or one of whose axes counts the other way,
+    is the mirror image of the machine's motion: no rotation fits it, this fit does. On a record
+    moving one axis (points on a line) both fits are alike.
+    """
+    P0, Q0 = P - P.mean(axis=0), Q - Q.mean(axis=0)
+    U, _, Vt = np.linalg.svd(P0.T @ Q0)
+    D = np.diag([1.0, -1.0])
+    M = (U @ D @ Vt).T if np.linalg.det(U @ Vt) > 0 else (U @ Vt).T
+    return float(np.sqrt(np.mean((Q0 - P0 @ M.T) ** 2)))
+
+
 def plate_alignment(P, Q, kappa=1.0):
     """Grid-plate rotation and origin: machine p = R(theta) p_kgm + o (2-D Procrustes).
 

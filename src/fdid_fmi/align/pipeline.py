@@ -31,8 +31,8 @@ from scipy.spatial.transform import Rotation
 from ..errors import InputError
 from ..signals import derivative
 from ..trace import Channel, Trace
-from .orientation import (AXIS_INDEX, G_MM_S2, axis_directions, euler_angles, integration_drift, noise_std,
-                          plate_alignment, rotation_from_directions, static_constant)
+from .orientation import (AXIS_INDEX, G_MM_S2, axis_directions, euler_angles, integration_drift, mirror_residual,
+                          noise_std, plate_alignment, rotation_from_directions, static_constant)
 from .readers import SensorRecord
 from .resample import lowpass, to_controller_grid
 from .result import AlignmentResult, Estimate, SensorAlignment
@@ -284,6 +284,14 @@ def _align_accelerometer(rec: SensorRecord, t, ref, opts, given):
     if rot_final is not None:
         sa.rotation = rot_final.as_matrix().tolist()
         gs = rot_final.inv().apply([0.0, 0.0, G_MM_S2])
+        # at rest an accelerometer reads +g along machine +z (specific force); read along -z, the
+        # rotation fitted to the x/y directions is that of a mirrored (left-handed) frame
+        if float(c @ gs) < -0.5 * G_MM_S2 * float(np.linalg.norm(c)):
+            raise InputError(f"accelerometer '{name}': its columns {list(rec.columns)} form the mirror "
+                             f"image of a rotated machine frame (at rest it reads gravity along machine -z "
+                             f"of the rotation fitted to its {sorted(dirs) or list(wanted)} directions): two "
+                             f"columns swapped or one counting the other way; give the columns in the "
+                             f"sensor's x, y, z order (cols=)", source=src, column="columns")
         ang_sigma = [e.uncertainty or 0.0 for e in sa.estimates
                      if e.step == "orientation" and e.name in ("alpha", "beta", "gamma")]
         s_rot = np.radians(max(ang_sigma, default=0.0))  # gravity leaks by g x angle error
@@ -340,6 +348,13 @@ def _align_grid(rec: SensorRecord, t, ref, opts):
     Pm = clk.at(t, mapping)
     ok = np.all(np.isfinite(Pm), axis=1)
     th, s_th, o, s_o, res = plate_alignment(Pm[ok], Q[ok], opts["kappa"])
+    mirrored = mirror_residual(Pm[ok], Q[ok])
+    if mirrored < 0.5 * res:
+        raise InputError(f"grid encoder '{name}': its plate axes are the mirror image of the machine's "
+                         f"{list(rec.axes)} (columns {list(rec.columns)} swapped, or one counting the "
+                         f"other way): the best rotation leaves {res * 1e3:.3g} um RMS, a mirror image "
+                         f"{mirrored * 1e3:.3g} um; give the columns in plate x, y order (cols=) and the "
+                         f"machine axes they measure (axes=)", source=src, column="columns")
     c_, s_ = np.cos(np.radians(th)), np.sin(np.radians(th))
     R2 = np.array([[c_, -s_], [s_, c_]])
     sa = SensorAlignment(name, "grid_encoder", src, rec.rate_hz, mapping=mapping)
@@ -355,6 +370,28 @@ def _align_grid(rec: SensorRecord, t, ref, opts):
     pm = P @ R2.T + o
     signals = {a: pm[:, rec.axes.index(a)] for a in have}
     return sa, signals
+
+
+def _check_parameters(**kw):
+    """align()'s numeric parameters: real numbers in their ranges, else one InputError naming the
+    parameter (iterations=0 crashed with KeyError, a NaN window with ValueError, window_s=0 ran
+    windows of one sample and returned a worse offset without a word)."""
+    import numbers
+    for k, v in kw.items():
+        if k == "max_offset_s" and v is None:
+            continue
+        ok = isinstance(v, numbers.Real) and not isinstance(v, bool) and np.isfinite(v)
+        if k == "iterations":
+            ok = ok and isinstance(v, numbers.Integral) and v >= 1
+            want = "an integer >= 1"
+        elif k == "min_overlap_s":
+            ok = ok and v >= 0
+            want = "a finite number >= 0"
+        else:
+            ok = ok and v > 0
+            want = "a finite number > 0" + (" (or None)" if k == "max_offset_s" else "")
+        if not ok:
+            raise InputError(f"{k} must be {want}, got {v!r}", column=k)
 
 
 def align(controller: Trace, sensors, orientation=None, lowpass_hz=10.0, window_s=1.0,
@@ -396,6 +433,8 @@ def align(controller: Trace, sensors, orientation=None, lowpass_hz=10.0, window_
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise InputError(f"sensor names must be unique; repeated: {dup}", column="name")
+    _check_parameters(lowpass_hz=lowpass_hz, window_s=window_s, max_offset_s=max_offset_s,
+                      aa_fraction=aa_fraction, iterations=iterations, min_overlap_s=min_overlap_s)
     Ts = controller.Ts
     nyq = 0.5 / Ts
     if not (0 < lowpass_hz < nyq):

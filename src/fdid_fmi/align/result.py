@@ -59,12 +59,13 @@ class Estimate:
 
     def text(self, digits=4):
         def fmt(v):
-            if v is None:
-                return "?"
             if isinstance(v, (list, tuple, np.ndarray)):
                 return "(" + ", ".join(fmt(x) for x in v) + ")"
+            if v is None or not np.isfinite(float(v)):     # as in to_dict (null): not known
+                return "?"
             return f"{float(v):.{digits}g}"
-        u = "" if self.uncertainty is None else f" ± {fmt(self.uncertainty)}"
+        unc = _plain(self.uncertainty)
+        u = "" if unc is None else f" ± {fmt(unc)}"
         return f"{fmt(self.value)}{u} {self.unit}"
 
 

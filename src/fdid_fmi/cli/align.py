@@ -17,7 +17,7 @@ sign       -1 for a sensor subtracted (table accelerometer in head - table); acc
 from __future__ import annotations
 
 import json
-
+from pathlib import Path
 
 from ..errors import InputError
 from .argtypes import finite_float
@@ -59,18 +59,28 @@ def parse_sensor(tokens, kind):
     """``[FILE, KEY=VALUE, ...]`` -> keyword arguments of ``read_sensor``."""
     opt = f"--{'acc' if kind == 'accelerometer' else 'kgm'}"
     tokens = [str(x) for x in tokens]
-    files = [x for x in tokens if "=" not in x]
+
+    def is_setting(tok):
+        # KEY=VALUE, unless it names an existing file whose '=' is not a known setting's (a
+        # folder like date=2026-11-23/ holding the sensor file)
+        return "=" in tok and (tok.split("=", 1)[0].strip() in SENSOR_KEYS or not Path(tok).is_file())
+
+    files = [x for x in tokens if not is_setting(x)]
     if len(files) != 1:
         raise InputError(f"give exactly one file per {opt} (then KEY=VALUE settings), got {files or 'none'}",
                          source=opt)
     kw = {"path": files[0], "kind": kind}
+    seen = {}
     for tok in tokens:
-        if "=" not in tok:
+        if not is_setting(tok):
             continue
         k, v = (s.strip() for s in tok.split("=", 1))
         if k not in SENSOR_KEYS:
             raise InputError(f"unknown setting '{k}'; expected one of {sorted(SENSOR_KEYS)}", source=opt,
                              column=k)
+        if k in seen:                    # the later one would win without a word
+            raise InputError(f"setting '{k}' given twice ('{seen[k]}' and '{tok}')", source=opt, column=k)
+        seen[k] = tok
         if not v:
             raise InputError(f"'{tok}' has no value", source=opt, column=k)
         if k == "cols":
