@@ -190,7 +190,7 @@ def built_entry(tmp_path_factory):
     edir = root / "out" / "entries" / spec.dirname
     res = run_entry(WorkItem(spec, str(edir), h, version))
     assert res.ok, res.error
-    return {"edir": edir, "hash": h, "res": res}
+    return {"edir": edir, "hash": h, "res": res, "spec": spec, "version": version}
 
 
 def test_outputs_replaced_by_a_killed_run_are_not_taken_as_done(built_entry):
@@ -211,6 +211,35 @@ def test_outputs_replaced_by_a_killed_run_are_not_taken_as_done(built_entry):
     finally:
         model.write_bytes(original)
     assert _finished(edir, h, None) is not None
+
+
+def test_failure_of_the_comparison_is_not_reused_with_another_previous_result(built_entry, tmp_path):
+    # a deterministic failure was reused whatever the previous result: an entry whose comparison
+    # failed against one --previous folder stayed failed (skipped) when run against another
+    import shutil
+    from fdid_fmi.fleet.runner import _finished
+    from fdid_fmi.fleet.work import PreviousModel, WorkItem, run_entry
+    edir = tmp_path / "m01__x"
+    shutil.copytree(built_entry["edir"], edir)
+    h = built_entry["hash"]
+    prev = PreviousModel(str(tmp_path / "gone" / "model.json"), {}, {}, "night0/m01/x")
+    res = run_entry(WorkItem(built_entry["spec"], str(edir), h, built_entry["version"], prev, {}, "K1"))
+    assert not res.ok and res.deterministic and "model.json" in res.error
+    assert _finished(edir, h, "K1") is not None          # the same previous: the failure stands
+    assert _finished(edir, h, "K2") is None               # another previous: run again
+    assert _finished(edir, h, None) is None               # no previous: run again
+
+
+def test_report_does_not_call_an_entry_that_never_ran_reused(tmp_path):
+    # the fleet table's "run" column said "reused" for an entry refused by the manifest (the
+    # summary counted it neither run nor reused)
+    from fdid_fmi.fleet import run_fleet
+    man = tmp_path / "plant.toml"
+    man.write_text(ENTRY + 'options = { seed = [1, 2] }\n')
+    fr = run_fleet(man, tmp_path / "out", progress=False)
+    row, = json.loads((tmp_path / "out" / "fleet.json").read_text())["table"]
+    assert row["status"] == "failed" and row["run"] == "not run"
+    assert fr.executed == [] and fr.skipped == []
 
 
 # ----------------------------------------------------------------------------- alignment

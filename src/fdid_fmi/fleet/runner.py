@@ -141,7 +141,8 @@ def table_rows(fr: FleetResult):
             "model_rms_motor_um": e.errors_um.get("motor"), "model_rms_tool_um": e.errors_um.get("tool"),
             "friction_peak_um": e.signature.friction_peak_um if e.signature else None,
             "effects_added": [x.get("kind") for x in e.effects_added],
-            "wall_s": e.timings.total_s, "run": "done now" if e.key in fr.executed else "reused",
+            "wall_s": e.timings.total_s,
+            "run": "done now" if e.key in fr.executed else "reused" if e.key in fr.skipped else "not run",
         })
     return rows
 
@@ -215,7 +216,8 @@ def _finished(entry_dir: Path, input_hash, compare_key):
         if not outputs_intact(entry_dir, res):
             return None
         return res
-    return res if res.deterministic else None
+    # a failure follows from the inputs -- including the previous model it was compared with
+    return res if res.deterministic and res.compare_key == compare_key else None
 
 
 # ----------------------------------------------------------------------------- executors

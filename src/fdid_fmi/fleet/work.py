@@ -329,6 +329,9 @@ def run_entry(item: WorkItem) -> EntryResult:
     res.finished_utc = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
     if res.status != "ok":
         res.timings.total_s = time.perf_counter() - t_start
+        # a failure may come from the comparison (the previous model): it holds for this previous
+        # result and these thresholds only
+        res.compare_key = item.compare_key
     try:
         if out.is_dir() or res.status == "ok":
             if res.status == "ok":
