@@ -11,6 +11,8 @@ Defects found and fixed (each test below failed on the templates before the fix)
   * a deserialized FMU state with inconsistent step flags (steps counted but no doStep taken;
     initial state to be recomputed after a doStep) was accepted, and the FMU time then jumped
     back to the start time at the next step while the master's time ran on.
+  * SetFMUstate accepted an FMU state of another fdid FMU whose states have the same size (same
+    model structure, other parameters): the FMU silently went on with the other model's state.
 The other tests pin down behaviour the review checked and found correct.
 """
 import ctypes
@@ -44,6 +46,17 @@ def fmus(tmp_path_factory):
     out = {}
     for v in (2, 3):
         path = export_fmu(fs.siso_model(), d / f"r{v}.fmu", fmi_version=v)
+        out[v] = (read_model_description(str(path)), extract(str(path), str(d / f"x{v}")))
+    return out
+
+
+@pytest.fixture(scope="module")
+def other_fmus(tmp_path_factory):
+    """FMUs of another model with the same structure (so FMU states of the same size)."""
+    d = tmp_path_factory.mktemp("review3_other")
+    out = {}
+    for v in (2, 3):
+        path = export_fmu(fs.siso_model(level=2.0, zeta=0.5), d / f"o{v}.fmu", fmi_version=v)
         out[v] = (read_model_description(str(path)), extract(str(path), str(d / f"x{v}")))
     return out
 
@@ -216,6 +229,36 @@ def test_a_state_with_inconsistent_step_flags_is_refused(fmus, v):
             assert "corrupt state" in s.errors()[-1]
     finally:
         s.free()
+
+
+@pytest.mark.parametrize("v", [2, 3])
+def test_a_state_of_another_fmu_is_refused(fmus, other_fmus, v):
+    """FMI 2.0.4 section 2.1.8 / FMI 3.0 section 2.2.6.7: SetFMUstate restores a state this FMU
+    copied. Two axis FMUs of one structure (a master keeping their states in one array) have
+    states of the same size and kind; before the fix B took A's state with OK and simulated on
+    with A's parameters and A's time. The serialized form was already checked (GUID)."""
+    a = Slave(fmus, v, "a").start({"x_x_cmd": 0.3})
+    b = Slave(other_fmus, v, "b").start()
+    try:
+        a.f.doStep(0.0, TS)
+        sa, sb = a.get_state(), b.get_state()
+        with pytest.raises(FMICallException):
+            b.set_state(sa)
+        assert "not a state of this FMU" in b.errors()[-1]
+        b.set_state(sb)                                 # its own state is accepted
+        get = getattr(b.f.dll, "fmi3GetFMUState" if v == 3 else "fmi2GetFMUstate")
+        get.restype = ctypes.c_int
+        get.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_void_p)]
+        held = ctypes.c_void_p(sa.value)                # A's state given to B to be overwritten
+        assert get(b.f.component, ctypes.byref(held)) == 3 and held.value == sa.value
+        b.set_state(sb)
+        b.f.doStep(0.0, TS)
+        blob = bytes(a.serialize(sa))
+        with pytest.raises(FMICallException):           # serialized: refused by the GUID
+            b.deserialize(blob)
+    finally:
+        a.free()
+        b.free()
 
 
 # ----------------------------------------------------------------------------- checked, correct

@@ -20,6 +20,7 @@ typedef struct {
     double start_time;
     FdidFlags flags;
     size_t nbuf;
+    unsigned long long model_id;  /* model_id(): a state of another fdid FMU of the same size is refused */
     /* followed by nbuf doubles */
 } Snapshot;
 
@@ -286,9 +287,18 @@ static size_t snapshot_bytes(void) {
     return sizeof(Snapshot) + fdid_buffer_size(&fdid_model) * sizeof(double);
 }
 
+/* 64-bit FNV-1a hash of the GUID: tells this model's FMU states from those of another fdid FMU
+ * (another model, or the same model exported again) whose states have the same size */
+static unsigned long long model_id(void) {
+    unsigned long long h = 14695981039346656037ULL;
+    const unsigned char *p;
+    for (p = (const unsigned char *)fdid_model.guid; *p; p++) h = (h ^ *p) * 1099511628211ULL;
+    return h;
+}
+
 static int snapshot_valid(const FdidInstance *I, const Snapshot *s) {
     return s && s->magic == I->api->snapshot_magic && s->nbuf == fdid_buffer_size(&fdid_model) &&
-           (s->mode & FDID_ANY_STATE);
+           s->model_id == model_id() && (s->mode & FDID_ANY_STATE);
 }
 
 static int is_flag(int x) { return x == 0 || x == 1; }
@@ -345,6 +355,7 @@ int fdid_get_state(FdidInstance *I, const char *fn, void **state) {
     s->start_time = I->start_time;
     s->flags = I->s.f;
     s->nbuf = I->s.nbuf;
+    s->model_id = model_id();
     memcpy((char *)s + sizeof(Snapshot), I->s.buf, I->s.nbuf * sizeof(double));
     *state = s;
     return FDID_OK;
