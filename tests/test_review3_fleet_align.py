@@ -331,3 +331,14 @@ def test_unknown_uncertainty_is_printed_as_unknown():
     assert Estimate("timing", "time_offset", 1.5, float("nan"), "s", "m").text() == "1.5 s"
     assert Estimate("gravity_bias", "c", [1.0, 2.0], [float("nan"), 0.5], "mm/s^2", "m").text() == \
         "(1, 2) ± (?, 0.5) mm/s^2"
+
+
+def test_sensor_column_given_twice_is_refused(tmp_path):
+    # cols=ax,ax,az (or a name and its number) was read, and align() then blamed the time
+    # overlap ("no common motion ... the records do not overlap in time")
+    from fdid_fmi.align import read_accelerometer
+    t = np.arange(40) * 2e-4
+    f = tmp_path / "acc.csv"
+    f.write_text("t_s,ax_g,ay_g,az_g\n" + "\n".join(f"{v:.4f},0.01,0.02,1" for v in t) + "\n")
+    with pytest.raises(InputError, match="two sensor axes"):
+        read_accelerometer(f, columns=["ax_g", "2", "az_g"])

@@ -165,6 +165,10 @@ def read_sensor(path, kind, columns=None, time=None, unit=None, axes=("x", "y"),
         if len(cols) != need:
             raise InputError(f"a {kind.replace('_', ' ')} needs {need} columns (x, y{', z' if need == 3 else ''}),"
                              f" got {len(cols)}: {cols}", source=src, column="columns")
+        twice = sorted({c for c in cols if cols.count(c) > 1})
+        if twice:       # one signal as two sensor axes: align() blamed the time overlap
+            raise InputError(f"column(s) {twice} given for two sensor axes; the {need} columns must differ",
+                             source=src, column=twice[0])
     data = []
     for c in cols:
         if c == tr.meta.get("time_column"):
