@@ -136,8 +136,9 @@ def _run(s, cmd, k0=0, outs=("x_x", "x_e", "x_v", "x_dnf")):
 @pytest.mark.parametrize("v", [2, 3])
 def test_a_step_that_makes_the_state_non_finite_is_an_error(fmus, v):
     """Commands of +-1e308 mm (finite, so SetReal accepts them) overflow the state in the second
-    step. FMI 2.0.4 section 2.1.3 / FMI 3.0 section 4.2.1: a step the FMU could not compute must
-    return fmi2Error / fmi3Error (earlyReturn or OK may not signal it). Before the fix every doStep
+    step. FMI 2.0.4 2.1.3 (status) / FMI 3.0 4.2.1 (fmi3DoStep, Step Mode): a step the FMU could
+    not compute must return fmi2Error / fmi3Error (earlyReturn or OK may not signal it). Before the
+    fix every doStep
     returned OK with inf/NaN in the state, GetFMUstate gave a state that SetFMUstate refused,
     and only a later get of an output reported it."""
     s = Slave(fmus, v).start()
@@ -233,8 +234,8 @@ def test_a_state_with_inconsistent_step_flags_is_refused(fmus, v):
 
 @pytest.mark.parametrize("v", [2, 3])
 def test_a_state_of_another_fmu_is_refused(fmus, other_fmus, v):
-    """FMI 2.0.4 section 2.1.8 / FMI 3.0 section 2.2.6.7: SetFMUstate restores a state this FMU
-    copied. Two axis FMUs of one structure (a master keeping their states in one array) have
+    """FMI 2.0.4 2.1.8 / FMI 3.0 2.2.7.4 (the complete FMU state): SetFMUstate restores a state
+    this FMU copied. Two axis FMUs of one structure (a master keeping their states in one array) have
     states of the same size and kind; before the fix B took A's state with OK and simulated on
     with A's parameters and A's time. The serialized form was already checked (GUID)."""
     a = Slave(fmus, v, "a").start({"x_x_cmd": 0.3})
@@ -281,7 +282,8 @@ def test_reset_then_rerun_equals_a_fresh_instance_and_states_round_trip(fmus, v)
         fresh.reset_and_start(ins)                       # another instance continues the state
         fresh.set_state(fresh.deserialize(blob))
         assert np.array_equal(_run(fresh, cmd, k0=60), ref[60:])
-        for bad in (blob[:-1], blob + b"\0", b"", bytes([blob[0] ^ 1]) + blob[1:], blob[:GUID] + bytes(len(blob) - GUID)):
+        for bad in (blob[:-1], blob + b"\0", b"", bytes([blob[0] ^ 1]) + blob[1:],   # truncated, long,
+                    blob[:GUID] + bytes(len(blob) - GUID)):               # foreign GUID, zeroed body
             with pytest.raises(FMICallException):
                 s.deserialize(bad)
     finally:
