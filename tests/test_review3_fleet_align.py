@@ -342,3 +342,33 @@ def test_sensor_column_given_twice_is_refused(tmp_path):
     f.write_text("t_s,ax_g,ay_g,az_g\n" + "\n".join(f"{v:.4f},0.01,0.02,1" for v in t) + "\n")
     with pytest.raises(InputError, match="two sensor axes"):
         read_accelerometer(f, columns=["ax_g", "2", "az_g"])
+
+
+def _renamed_header(src, dst, header):
+    lines = Path(src).read_text().splitlines()
+    Path(dst).write_text("\n".join([header] + lines[1:]) + "\n")
+    return dst
+
+
+@pytest.mark.parametrize("kind,unit,words", [("accelerometer", "g", "9.81x"), ("grid_encoder", "mm", "1000x")])
+def test_sensor_unit_off_by_a_factor_is_refused(raw_run, tmp_path, kind, unit, words):
+    # m/s^2 read as g: the aligned acceleration came out 9.8x too large (gain_x 9.8 printed as a
+    # "check"); um read as mm: a plate origin at 1.5e4 mm and tool positions 1000x, both "aligned"
+    from fdid_fmi.align import align, read_sensor
+    from fdid_fmi.io import read_trace
+    if kind == "accelerometer":
+        f = _renamed_header(raw_run["sensors"]["acc_tool"], tmp_path / "acc.csv", "t_s,ax,ay,az")
+    else:
+        f = _renamed_header(raw_run["sensors"]["kgm"], tmp_path / "kgm.csv", "t_s,kx,ky")
+    with pytest.raises(InputError, match=words) as ei:
+        align(read_trace(raw_run["controller"]), [read_sensor(f, kind, unit=unit)])
+    assert "column 'unit'" in str(ei.value)
+
+
+@pytest.mark.parametrize("n", [0, -2, 1.5])
+def test_virtual_fleet_needs_a_machine(tmp_path, n):
+    # n_machines=0 wrote night manifests without an entry (fdid fleet run then refused them)
+    from fdid_fmi.fleet.virtual import write_virtual_fleet
+    with pytest.raises(InputError, match="n_machines"):
+        write_virtual_fleet(tmp_path, n_machines=n, nights=(1,))
+    assert not (tmp_path / "night1.toml").exists()

@@ -274,6 +274,13 @@ def _align_accelerometer(rec: SensorRecord, t, ref, opts, given):
         sa.missing.append(f"accelerometer '{name}' ({src}): rotation about machine {a1} not estimable: "
                           f"{why}; its {a1} acceleration is aligned, the full orientation needs a run "
                           f"where two of its axes move (orientation=...)")
+    for a, d in dirs.items():      # below the first tool-side mode tool and motor move alike
+        if not 1 / 3 <= d["gain"] <= 3:
+            raise InputError(f"accelerometer '{name}': its machine-{a} acceleration below "
+                             f"{opts['lowpass_hz']:g} Hz is {d['gain']:.3g} x the encoder's (expected ~1): the "
+                             f"unit of its columns is wrong (g vs m/s^2 is 9.81x, mm/s^2 vs m/s^2 1000x; "
+                             f"unit=...) or it does not move with machine {a} (axes=...)", source=src,
+                             column="unit")
     for a, d in dirs.items():
         sa.estimates.append(Estimate("orientation", f"gain_{a}", d["gain"], None, "1",
                                      f"sensor / encoder acceleration below {opts['lowpass_hz']:g} Hz",
@@ -348,6 +355,13 @@ def _align_grid(rec: SensorRecord, t, ref, opts):
     Pm = clk.at(t, mapping)
     ok = np.all(np.isfinite(Pm), axis=1)
     th, s_th, o, s_o, res = plate_alignment(Pm[ok], Q[ok], opts["kappa"])
+    Pk, Qk = Pm[ok], Q[ok]
+    scale = float(np.sqrt(np.sum((Qk - Qk.mean(axis=0)) ** 2) / np.sum((Pk - Pk.mean(axis=0)) ** 2)))
+    if not 0.5 <= scale <= 2.0:    # the plate follows the encoders below the first tool-side mode
+        raise InputError(f"grid encoder '{name}': the encoders moved {scale:.4g} x as far as the plate "
+                         f"(expected ~1): the unit of its columns is wrong (um vs mm is 1000x, inch 25.4x; "
+                         f"unit=...) or its axes are not the machine's {list(rec.axes)} (axes=)", source=src,
+                         column="unit")
     mirrored = mirror_residual(Pm[ok], Q[ok])
     if mirrored < 0.5 * res:
         raise InputError(f"grid encoder '{name}': its plate axes are the mirror image of the machine's "

@@ -146,6 +146,10 @@ def write_virtual_fleet(folder, n_machines=20, nights=(1, 2), changes=None, chan
     dict night -> manifest Path; the truth (changes) is written to ``folder/truth.json``
     """
     import json
+    import numbers
+    if isinstance(n_machines, bool) or not isinstance(n_machines, numbers.Integral) or n_machines < 1:
+        # 0 wrote manifests without an entry, which fdid fleet run then refused
+        raise InputError(f"n_machines must be an integer >= 1, got {n_machines!r}", column="n_machines")
     folder = Path(folder)
     axes = fleet_axes(n_machines)
     changes = default_changes(axes) if changes is None else dict(changes)
