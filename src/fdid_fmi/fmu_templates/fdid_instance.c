@@ -514,9 +514,9 @@ int fdid_do_step(FdidInstance *I, const char *fn, double t_comm, double h) {
                a = (size_t)fdid_model.n_axes;
         if (!(all_finite(S->xi, n) & all_finite(S->u, m) & all_finite(S->y, p) & all_finite(S->vel, a) &
               all_finite(S->x_prev, a) & all_finite(S->v_prev, a)))
-                return fdid_fail(I, "%s: the model state is not finite after the step to %.17g s (the inputs or "
-                                "parameters drive the model out of the range of doubles); restore an "
-                                "earlier FMU state or reset", fn, fdid_time(I));
+            return fdid_fail(I, "%s: the model state is not finite after the step to %.17g s (the inputs or "
+                                "parameters drive the model out of the range of doubles); restore "
+                                "an earlier FMU state or reset", fn, fdid_time(I));
     }
     return FDID_OK;
 }
