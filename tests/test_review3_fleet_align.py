@@ -372,3 +372,14 @@ def test_virtual_fleet_needs_a_machine(tmp_path, n):
     with pytest.raises(InputError, match="n_machines"):
         write_virtual_fleet(tmp_path, n_machines=n, nights=(1,))
     assert not (tmp_path / "night1.toml").exists()
+
+
+@pytest.mark.parametrize("address", ["foo", "xyz://host:1", ""])
+def test_malformed_scheduler_address_is_one_input_error(tmp_path, address):
+    # was "internal error: ValueError: missing port number in address 'foo' -- this is a bug", exit 3
+    pytest.importorskip("distributed")
+    from fdid_fmi.fleet import run_fleet
+    man = tmp_path / "plant.toml"
+    man.write_text(ENTRY)                 # a usable entry (its trace is missing: a worker would say so)
+    with pytest.raises(InputError, match="Dask scheduler"):
+        run_fleet(man, tmp_path / "out", scheduler=address, progress=False)

@@ -251,8 +251,9 @@ class _Dask:
         if client is None:
             try:
                 client = Client(scheduler, timeout="20s")
-            except (OSError, TimeoutError) as exc:
-                raise InputError(f"cannot connect to the Dask scheduler ({exc})", source=str(scheduler)) from None
+            except (OSError, TimeoutError, ValueError) as exc:    # ValueError: not an address
+                raise InputError(f"cannot connect to the Dask scheduler ({exc}); expected an address like "
+                                 f"tcp://HOST:8786", source=str(scheduler)) from None
         self.client = client
         try:
             info = client.scheduler_info()
