@@ -383,3 +383,21 @@ def test_malformed_scheduler_address_is_one_input_error(tmp_path, address):
     man.write_text(ENTRY)                 # a usable entry (its trace is missing: a worker would say so)
     with pytest.raises(InputError, match="Dask scheduler"):
         run_fleet(man, tmp_path / "out", scheduler=address, progress=False)
+
+
+def test_identification_range_does_not_apply_to_held_out_traces(built_entry, tmp_path):
+    # options range = "0.5:1.0" was checked against every trace: a held-out trace of 0.3 s failed
+    # the entry ("range outside the data" of the held-out file), though validation uses it whole
+    from fdid_fmi.fleet.work import _read_traces
+    src = Path(built_entry["spec"].traces[0])
+    lines = src.read_text().splitlines()
+    short = tmp_path / "short.csv"
+    short.write_text("\n".join(lines[:301]) + "\n")           # 0.3 s
+    (tmp_path / "plant.toml").write_text(
+        ENTRY.replace('["a.csv"]', f'["{src}", "short.csv"]')
+        + 'map = { t = "t_s", "x.cmd" = "x_cmd_mm", "x.act" = "x_mm" }\noptions = { range = "0.5:1.0" }\n')
+    spec, = load_manifest(tmp_path / "plant.toml").entries
+    assert spec.error is None
+    train, held = _read_traces(spec)
+    assert train.meta["ranges"] == [(0.5, 1.0)] and "ranges" not in held.meta
+    assert held.t[-1] < 0.31

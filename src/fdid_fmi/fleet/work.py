@@ -218,8 +218,10 @@ def channel_errors(model, traces, axis):
 def _read_traces(spec: EntrySpec):
     from ..cli.mapping import trace_from_args
     traces = []
-    for p in spec.traces:
+    for k, p in enumerate(spec.traces):
         args = identify_args(p, spec)
+        if k:       # 'range' selects data of the identification trace; the held-out ones are whole
+            args.range = []
         traces.append(trace_from_args(p, args))
     return traces
 
