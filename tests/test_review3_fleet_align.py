@@ -401,3 +401,12 @@ def test_identification_range_does_not_apply_to_held_out_traces(built_entry, tmp
     train, held = _read_traces(spec)
     assert train.meta["ranges"] == [(0.5, 1.0)] and "ranges" not in held.meta
     assert held.t[-1] < 0.31
+
+
+def test_calibration_entry_without_a_rotation_is_one_input_error(raw_run):
+    # align(orientation={"acc_tool": {"estimates": []}}) raised KeyError 'rotation'
+    from fdid_fmi.align import align, read_accelerometer
+    from fdid_fmi.io import read_trace
+    with pytest.raises(InputError, match="not a 3x3 rotation"):
+        align(read_trace(raw_run["controller"]), [read_accelerometer(raw_run["sensors"]["acc_tool"])],
+              orientation={"acc_tool": {"estimates": []}})
