@@ -410,3 +410,14 @@ def test_calibration_entry_without_a_rotation_is_one_input_error(raw_run):
     with pytest.raises(InputError, match="not a 3x3 rotation"):
         align(read_trace(raw_run["controller"]), [read_accelerometer(raw_run["sensors"]["acc_tool"])],
               orientation={"acc_tool": {"estimates": []}})
+
+
+def test_sensor_unit_off_by_a_factor_with_a_calibration(raw_run, tmp_path):
+    # with the rotation of a calibration run no gain was estimated: m/s^2 read as g passed
+    from fdid_fmi.align import align, read_accelerometer
+    from fdid_fmi.io import read_trace
+    f = _renamed_header(raw_run["sensors"]["acc_tool"], tmp_path / "acc.csv", "t_s,ax,ay,az")
+    R = raw_run["truth"]["accelerometers"]["acc_tool"]["rotation_matrix"]
+    with pytest.raises(InputError, match="9.81x"):
+        align(read_trace(raw_run["controller"]), [read_accelerometer(f, unit="g", name="acc_tool")],
+              orientation={"acc_tool": R})

@@ -274,7 +274,11 @@ def _align_accelerometer(rec: SensorRecord, t, ref, opts, given):
         sa.missing.append(f"accelerometer '{name}' ({src}): rotation about machine {a1} not estimable: "
                           f"{why}; its {a1} acceleration is aligned, the full orientation needs a run "
                           f"where two of its axes move (orientation=...)")
-    for a, d in dirs.items():      # below the first tool-side mode tool and motor move alike
+    # below the first tool-side mode tool and motor move alike: a gain far from 1 is a wrong unit
+    # (with a calibration's rotation too: the directions of the axes that move, for this check)
+    gains = dirs if rot is None else axis_directions(F[ok], {a: ref[a]["a"][ok] for a in ref}, wanted,
+                                                     kappa=opts["kappa"])
+    for a, d in gains.items():
         if not 1 / 3 <= d["gain"] <= 3:
             raise InputError(f"accelerometer '{name}': its machine-{a} acceleration below "
                              f"{opts['lowpass_hz']:g} Hz is {d['gain']:.3g} x the encoder's (expected ~1): the "
