@@ -421,3 +421,37 @@ def test_sensor_unit_off_by_a_factor_with_a_calibration(raw_run, tmp_path):
     with pytest.raises(InputError, match="9.81x"):
         align(read_trace(raw_run["controller"]), [read_accelerometer(f, unit="g", name="acc_tool")],
               orientation={"acc_tool": R})
+
+
+def test_fleet_table_keeps_a_figure_that_was_not_computed_and_writes_strict_json(tmp_path):
+    # max() let a NaN figure vanish when it came after a number (the table said 3 um while the
+    # entry's validation had a trace without a figure), and a diverged FMU's inf was written as the
+    # non-JSON token Infinity
+    from fdid_fmi.fleet.report import write_fleet_report
+    from fdid_fmi.fleet.runner import FleetResult
+    from fdid_fmi.fleet.work import EntryResult, ValidationFigures
+    v = [ValidationFigures("a.csv", 3.0, 5.0, 1e-15), ValidationFigures("b.csv", float("nan"), float("nan"),
+                                                                        float("inf"), ["not finite"])]
+    e = EntryResult("m01", "x", "ok", "h", validation=v)
+    fr = FleetResult(out=str(tmp_path), manifest="plant.toml", previous=None, executor="none", workers=0,
+                     entries=[e], executed=["m01/x"])
+    j, _ = write_fleet_report(fr, tmp_path)
+
+    def no_constants(name):
+        raise ValueError(f"non-JSON token {name}")
+    d = json.loads(Path(j).read_text(), parse_constant=no_constants)
+    row, = d["table"]
+    assert row["fmu_rms_um"] is None and row["fmu_max_um"] is None and row["fmu_vs_reference_mm"] is None
+
+
+def test_entry_files_are_strict_json(tmp_path):
+    # validation.json / diagnosis.json were written with NaN tokens for a figure not computed
+    from fdid_fmi.fleet.work import ValidationFigures, _save_json
+    from dataclasses import asdict
+    p = tmp_path / "validation.json"
+    _save_json(p, [asdict(ValidationFigures("b.csv", float("nan"), float("nan"), float("inf")))])
+
+    def no_constants(name):
+        raise ValueError(f"non-JSON token {name}")
+    d = json.loads(p.read_text(), parse_constant=no_constants)
+    assert d[0]["rms_um"] is None and d[0]["max_abs_diff_reference_mm"] is None

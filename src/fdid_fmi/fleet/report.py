@@ -91,7 +91,10 @@ def fleet_report_html(fr):
 
 def write_fleet_report(fr, out):
     """Write ``out/fleet.json`` and ``out/fleet.html`` atomically; returns their paths."""
+    from ..model import jsonable
     out = Path(out)
-    j = atomic_write(out / "fleet.json", json.dumps(fr.to_dict(), indent=1, default=float))
+    # non-finite figures (a diverged FMU's inf, a figure not computed) are null: NaN / Infinity
+    # are not JSON
+    j = atomic_write(out / "fleet.json", json.dumps(jsonable(fr.to_dict()), indent=1, allow_nan=False))
     h = atomic_write(out / "fleet.html", fleet_report_html(fr).html())
     return j, h

@@ -125,6 +125,13 @@ class FleetResult:
         return summary_lines(self)
 
 
+def _worst(values):
+    """Largest of ``values`` with a NaN (not computed) counting as the worst, None when empty:
+    ``max`` let a NaN vanish when it came after a number."""
+    vals = [float("inf") if v is None or v != v else float(v) for v in values]
+    return max(vals, default=None)
+
+
 def table_rows(fr: FleetResult):
     """One flat row per entry: the fleet's JSON table (and the HTML table)."""
     rows = []
@@ -135,9 +142,9 @@ def table_rows(fr: FleetResult):
             "changed": bool(e.change.changed) if e.change else None,
             "change": e.change.summary if (e.change and e.change.changed) else "",
             "error": e.error or "",
-            "fmu_rms_um": max((x.rms_um for x in v), default=None),
-            "fmu_max_um": max((x.max_um for x in v), default=None),
-            "fmu_vs_reference_mm": max((x.max_abs_diff_reference_mm for x in v), default=None),
+            "fmu_rms_um": _worst(x.rms_um for x in v),
+            "fmu_max_um": _worst(x.max_um for x in v),
+            "fmu_vs_reference_mm": _worst(x.max_abs_diff_reference_mm for x in v),
             "model_rms_motor_um": e.errors_um.get("motor"), "model_rms_tool_um": e.errors_um.get("tool"),
             "friction_peak_um": e.signature.friction_peak_um if e.signature else None,
             "effects_added": [x.get("kind") for x in e.effects_added],

@@ -240,8 +240,9 @@ def _identify(spec, trace):
 
 
 def _save_json(path, data):
+    from ..model import jsonable
     from ..outputs import atomic_write
-    atomic_write(path, json.dumps(data, indent=1, default=float))
+    atomic_write(path, json.dumps(jsonable(data), indent=1, default=float, allow_nan=False))
 
 
 def _save_model(model, path):
