@@ -455,3 +455,17 @@ def test_entry_files_are_strict_json(tmp_path):
         raise ValueError(f"non-JSON token {name}")
     d = json.loads(p.read_text(), parse_constant=no_constants)
     assert d[0]["rms_um"] is None and d[0]["max_abs_diff_reference_mm"] is None
+
+
+def test_orientation_without_an_accelerometer_is_refused(raw_run, tmp_path, capsys):
+    # --orientation with only --kgm was read and ignored (the run "succeeded")
+    from fdid_fmi.cli import main
+    calib = tmp_path / "calib.json"
+    calib.write_text(json.dumps({"format": "fdid-fmi alignment", "sensors": [
+        {"name": "acc_tool", "kind": "accelerometer", "rotation": np.eye(3).tolist(), "estimates": []}]}))
+    out = tmp_path / "o.csv"
+    rc = main(["align", str(raw_run["controller"]), "--kgm", str(raw_run["sensors"]["kgm"]),
+               "--orientation", str(calib), "-o", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "--orientation" in err and "--acc" in err and len(err.splitlines()) == 1, err
+    assert not out.exists()

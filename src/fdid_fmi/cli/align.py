@@ -134,6 +134,9 @@ def run(args):
             [parse_sensor(t, "grid_encoder") for t in args.kgm]
     if not specs:
         raise InputError("give at least one sensor: --acc FILE or --kgm FILE", source="fdid align")
+    if args.orientation and not args.acc:      # it would be read and not used
+        raise InputError("--orientation holds accelerometer orientations; it applies with --acc",
+                         source="--orientation")
     inputs = [args.controller] + [s["path"] for s in specs] + ([args.orientation] if args.orientation else [])
     check_output(args.output, inputs=inputs, what="aligned trace")
     if args.json:
