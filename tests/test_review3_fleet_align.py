@@ -294,11 +294,16 @@ def test_mirrored_accelerometer_is_refused(raw_run):
 
 @pytest.mark.parametrize("kw,words", [({"iterations": 0}, "iterations"), ({"window_s": 0.0}, "window_s"),
                                       ({"window_s": float("nan")}, "window_s"),
+                                      ({"window_s": 1e-9}, "shorter than"),
+                                      ({"lowpass_hz": 1e-300}, "two cycles"),
+                                      ({"lowpass_hz": 0.01}, "two cycles"),
                                       ({"lowpass_hz": "5"}, "lowpass_hz"),
                                       ({"min_overlap_s": float("nan")}, "min_overlap_s")])
 def test_align_parameters_checked(raw_run, kw, words):
-    # iterations=0: KeyError 'residual_s'; window_s=nan: ValueError; window_s=0 ran and returned an
-    # offset 1.2 ms off (truth -0.413 s: -0.4117); lowpass '5': TypeError; min_overlap nan: accepted
+    # iterations=0: KeyError 'residual_s'; window_s=nan: ValueError; window_s=0 or 1e-9 ran and
+    # returned an offset 1.2 ms off (truth -0.413 s: -0.4117 +- 0.4 ms); lowpass '5': TypeError;
+    # lowpass 1e-300 Hz: LinAlgError in the filter design, 0.01 Hz: "the sensor record is at rest
+    # throughout"; min_overlap nan: accepted
     from fdid_fmi.align import align, read_grid_encoder
     from fdid_fmi.io import read_trace
     with pytest.raises(InputError, match=words):

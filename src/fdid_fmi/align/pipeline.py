@@ -41,6 +41,7 @@ from .timing import MIN_DRIFT_WINDOWS, coarse_offset, fit_clock, window_lags
 __all__ = ["align", "controller_references"]
 
 MACHINE_AXES = ("x", "y", "z")
+FIRST_LAG_S = 0.025     # lag searched per window in the first round (s); later rounds: 0.006
 
 
 def controller_references(trace: Trace, lowpass_hz):
@@ -227,7 +228,7 @@ def _align_accelerometer(rec: SensorRecord, t, ref, opts, given):
         P = np.array([proj[a] for a in tax])
         Rf = np.column_stack([ref[a]["a"] for a in tax])
         lags = window_lags(t, Rf, lambda tq: (clk.at(tq, mapping) - c) @ P.T, opts["window_s"],
-                           0.025 if it == 0 else 0.006, rest=opts["rest"])
+                           FIRST_LAG_S if it == 0 else 0.006, rest=opts["rest"])
         mapping, sigma, info = fit_clock(lags, mapping, base=(a0, 1.0))
     # final constant with the final mapping
     lo = max(t[0], mapping[0] + mapping[1] * rec.tau[0])
@@ -354,7 +355,7 @@ def _align_grid(rec: SensorRecord, t, ref, opts):
         idx = [rec.axes.index(a) for a in have]
         Rv = np.column_stack([ref[a]["v"] for a in have])
         lags = window_lags(t, Rv, lambda tq: (clk.at(tq, mapping, deriv=True) @ R2.T)[:, idx],
-                           opts["window_s"], 0.025 if it == 0 else 0.006, rest=opts["rest"])
+                           opts["window_s"], FIRST_LAG_S if it == 0 else 0.006, rest=opts["rest"])
         mapping, sigma, info = fit_clock(lags, mapping, base=(a0, 1.0))
     Pm = clk.at(t, mapping)
     ok = np.all(np.isfinite(Pm), axis=1)
@@ -457,6 +458,14 @@ def align(controller: Trace, sensors, orientation=None, lowpass_hz=10.0, window_
     nyq = 0.5 / Ts
     if not (0 < lowpass_hz < nyq):
         raise InputError(f"lowpass_hz must lie in (0, {nyq:g}) Hz, got {lowpass_hz!r}", column="lowpass_hz")
+    span = float(controller.t[-1] - controller.t[0])
+    if lowpass_hz * span < 2.0:     # 1e-300 Hz crashed in the filter design, 0.01 Hz blamed the sensor
+        raise InputError(f"lowpass_hz {lowpass_hz:g} Hz keeps less than two cycles of the {span:.3g} s "
+                         f"controller record (at least {2.0 / span:.3g} Hz); the estimation signals need "
+                         f"the moves (below the first tool-side mode, e.g. 10 Hz)", column="lowpass_hz")
+    if window_s < 2 * FIRST_LAG_S:   # shorter windows returned a biased offset without a word
+        raise InputError(f"window_s {window_s:g} s is shorter than the +-{FIRST_LAG_S * 1e3:g} ms lag searched "
+                         f"in each window; at least {2 * FIRST_LAG_S:g} s (default 1 s)", column="window_s")
     for rec in sensors:
         if not lowpass_hz < 0.5 * rec.rate_hz:
             raise InputError(f"lowpass_hz {lowpass_hz:g} Hz is not below the Nyquist frequency "
