@@ -474,3 +474,19 @@ def test_orientation_without_an_accelerometer_is_refused(raw_run, tmp_path, caps
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "--orientation" in err and "--acc" in err and len(err.splitlines()) == 1, err
     assert not out.exists()
+
+
+def test_missing_compiler_on_a_worker_is_retried_not_kept(built_entry, tmp_path, monkeypatch):
+    # a worker without gcc failed the entry "deterministically": every rerun skipped it as failed,
+    # also after gcc was installed (the inputs had not changed)
+    from fdid_fmi.fleet.runner import _finished
+    from fdid_fmi.fleet.work import WorkItem, from_inputs, run_entry
+    from fdid_fmi.errors import InputError as IE
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))
+    edir = tmp_path / "m01__x"
+    res = run_entry(WorkItem(built_entry["spec"], str(edir), built_entry["hash"], built_entry["version"]))
+    assert not res.ok and "not installed" in res.error
+    assert not res.deterministic and _finished(edir, built_entry["hash"], None) is None
+    # an output of the entry's folder that cannot be written (disk full) is no input's fault either
+    assert not from_inputs(IE("cannot write (No space left on device)", source=str(edir / "model.json")), edir)
+    assert from_inputs(IE("not found", source=str(tmp_path / "x.csv")), edir)

@@ -324,7 +324,7 @@ def run_entry(item: WorkItem) -> EntryResult:
                       tm.read_s + tm.identify_s + tm.export_s + tm.validate_s + tm.diagnose_s + tm.compare_s)
         res.timings = tm
     except FdidError as exc:
-        res.status, res.error, res.deterministic = "failed", _one_line(str(exc)), True
+        res.status, res.error, res.deterministic = "failed", _one_line(str(exc)), from_inputs(exc, out)
     except Exception as exc:  # noqa: BLE001 - one failing entry must not stop the fleet
         last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
         where = f" ({Path(last.filename).name}:{last.lineno})" if last else ""
@@ -348,6 +348,26 @@ def run_entry(item: WorkItem) -> EntryResult:
 
 def _one_line(text):
     return " ".join(str(text).split())[:500]
+
+
+def from_inputs(exc, entry_dir) -> bool:
+    """Whether a failure follows from the entry's inputs (traces, options, previous model), so that
+    a rerun with the same inputs may reuse it. Not so: the C compiler missing on this worker or
+    failing (killed, out of memory), an output of the entry's own folder that cannot be written
+    (disk full) -- those were kept as failed by every rerun until the inputs changed."""
+    from ..fmu.build import BuildError
+    if isinstance(exc, BuildError):
+        return False
+    if isinstance(exc, InputError):
+        if exc.column == "platforms":            # build.compile: the compiler is not installed
+            return False
+        if exc.source:
+            try:
+                Path(exc.source).resolve().relative_to(Path(entry_dir).resolve())
+                return False                     # cannot write the entry's own output
+            except (ValueError, OSError):
+                pass
+    return True
 
 
 def _build(spec, traces, out, res, tm):
