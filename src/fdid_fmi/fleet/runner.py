@@ -20,8 +20,9 @@ Reliability
 -----------
 Each entry has a content hash (:func:`~.manifest.entry_hash`: trace bytes, options, software
 version = package version + a digest of the package's source, :func:`~.manifest.software_version`). An entry whose ``entry.json`` holds the same hash, a success (or a failure that follows
-from its inputs) and whose outputs exist is not submitted again; with a previous fleet result, the
-comparison is keyed as well (hash + previous model file + thresholds). A killed worker loses only
+from its inputs) and whose outputs are the ones it wrote (sha256) is not submitted again; with a
+previous fleet result, the comparison is keyed as well (hash + previous model file + thresholds),
+for a failure too. A killed worker loses only
 the entries it was running: on a Dask cluster the scheduler re-runs them on another worker (or
 they are reported ``failed`` as not deterministic); a broken local pool is replaced once and the
 unfinished entries resubmitted. Everything left unfinished is done by the next run.

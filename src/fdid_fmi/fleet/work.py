@@ -4,8 +4,10 @@
 :class:`WorkItem` (plain, picklable), writes the entry's outputs into its own folder, each file
 atomically (temporary file in the same folder, then ``os.replace``; :mod:`fdid_fmi.outputs`), and
 returns an :class:`EntryResult`. ``entry.json`` is written last: its presence with the entry's
-input hash is what marks the work as done, so a worker killed half-way leaves no result that a
-rerun could mistake for a finished one.
+input hash and the sha256 of every output it lists is what marks the work as done, so a worker
+killed half-way (also one rebuilding the entry for other inputs) leaves no result that a rerun
+could mistake for a finished one. A failure is kept (not retried) only when it follows from the
+inputs (:func:`from_inputs`): a compiler missing on a worker or a full disk is retried.
 
 Output folder ``OUT/entries/<machine>__<axis>/``:
 
