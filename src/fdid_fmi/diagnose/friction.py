@@ -134,7 +134,9 @@ def _detect_axis(ctx, a):
         b = 2.0 * abs(float(np.mean(tm))) if tm.size else 0.0
         cand = Candidate("backlash", a, abs(t_tool), BACKLASH_T, params={"backlash_mm": b}, search="locked",
                          evidence={"moves": int(tm.size)},
-                         note="|t| of the direction-aligned tool-side offset over moves")
+                         note="|t| of the direction-aligned tool-side offset over moves; backlash and the "
+                              "lost motion of an elastic drive train with friction on the tool side (2 F/k) "
+                              "give the same offset in position data")
         if tm.size < MIN_MOVES:
             cand.not_checked = f"the training trace has {tm.size} move(s); the t statistic needs {MIN_MOVES}"
         if cand.detected:
