@@ -1,4 +1,5 @@
 """Errors raised for bad user input: each names the file, column/parameter and row."""
+import math
 
 
 def one_line(text):
@@ -36,3 +37,16 @@ class InputError(FdidError, ValueError):
         if row is not None:
             where.append(f"row {row}")
         super().__init__(one_line(f"{': '.join([', '.join(where), message]) if where else message}"))
+
+
+def finite_number(value, name, positive=False):
+    """``value`` as a float when it is a finite number (> 0 when ``positive``), else InputError
+    naming the parameter ``name`` (a string, None or NaN would otherwise reach numpy)."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = math.nan
+    if not (math.isfinite(v) and (v > 0 or not positive)):
+        raise InputError(f"{name} must be a finite number{' > 0' if positive else ''}, got {value!r}",
+                         column=name)
+    return v

@@ -23,7 +23,7 @@ import operator
 
 import numpy as np
 
-from .errors import FdidError, InputError
+from .errors import FdidError, InputError, finite_number
 
 _D = ct.POINTER(ct.c_double)
 _I = ct.POINTER(ct.c_int)
@@ -94,17 +94,6 @@ def _lib():
         raise FdidError("fdid_fmi._kernel was built from other C sources than this package "
                         "(struct sizes differ): reinstall the package")
     return lib
-
-
-def _number(value, name):
-    """A finite float from a parameter value, else InputError naming the parameter."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        v = float("nan")
-    if not np.isfinite(v):
-        raise InputError(f"must be a finite number, got {value!r}", column=name)
-    return v
 
 
 def _real(a, name, ncols=None):
@@ -222,13 +211,13 @@ class Stepper:
                 raise InputError(f"must be true or false (or 1 / 0), got {on!r}", column=f"{a}_friction_on")
         for k, a in enumerate(axes):
             if f"{a}_friction_level" in params:
-                lv = _number(params[f"{a}_friction_level"], f"{a}_friction_level")
+                lv = finite_number(params[f"{a}_friction_level"], f"{a}_friction_level")
                 if not lv >= 0:
                     raise InputError(f"the friction level must be finite and >= 0, got {lv!r}",
                                      column=f"{a}_friction_level")
                 self.views["level"][k] = lv
             if f"{a}_v_tilde" in params:
-                vt = _number(params[f"{a}_v_tilde"], f"{a}_v_tilde")
+                vt = finite_number(params[f"{a}_v_tilde"], f"{a}_v_tilde")
                 if not vt > 0:
                     raise InputError(f"v_tilde must be > 0 mm/s, got {vt!r}", column=f"{a}_v_tilde")
                 self.views["vtilde"][k] = vt

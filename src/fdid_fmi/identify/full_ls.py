@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import optimize
 
-from ..errors import InputError
+from ..errors import InputError, finite_number
 from ..signals import butter_filtfilt, derivative
 from .lsfit import Fit
 from .pole_search import assemble
@@ -113,13 +113,13 @@ def identify_full_ls(traces, axis="x", cutoff_hz=None, order=2, v_tilde=None, p_
     ------
     InputError if the unconstrained LS gives an unstable closed loop (lack of excitation).
     """
-    from .quasi_static import MIN_SAMPLES_PER_GAIN, check_excitation, default_cutoff, positive
-    p_min_hz = positive(p_min_hz, "p_min_hz")
-    v_tilde = None if v_tilde is None else positive(v_tilde, "v_tilde")
+    from .quasi_static import MIN_SAMPLES_PER_GAIN, check_excitation, default_cutoff
+    p_min_hz = finite_number(p_min_hz, "p_min_hz", positive=True)
+    v_tilde = None if v_tilde is None else finite_number(v_tilde, "v_tilde", positive=True)
     traces = training_ranges(traces, [axis], roles=("cmd", "act"))
     Ts = traces[0].Ts
     # 0 was taken for "the default" (silently); None is the default, 0 a bad value
-    cutoff_hz = default_cutoff(Ts) if cutoff_hz is None else positive(cutoff_hz, "cutoff_hz")
+    cutoff_hz = default_cutoff(Ts) if cutoff_hz is None else finite_number(cutoff_hz, "cutoff_hz", positive=True)
     rows, ys, vmax = [], [], 0.0
     for tr in traces:
         xr, x = np.asarray(tr.cmd(axis), float), np.asarray(tr.act(axis), float)

@@ -11,22 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, finite_number
 from ..metrics import rms
 from ..model import QuasiStaticModel
 from ..signals import filtered_derivatives
 from .ranges import training_ranges
-
-
-def positive(value, name):
-    """``value`` as a float when it is a finite number > 0, else InputError naming ``name``."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        v = float("nan")
-    if not (np.isfinite(v) and v > 0):
-        raise InputError(f"{name} must be a finite number > 0, got {value!r}", column=name)
-    return v
 
 
 def default_cutoff(Ts):
@@ -59,7 +48,7 @@ def identify_quasi_static(traces, axes=None, cutoff_hz=None, order=2, terms=3):
         raise InputError("no axis with both commanded and measured position", source=traces[0].source)
     training_ranges(traces, axes, roles=("cmd", "act"))
     # 0 was taken for "the default" (silently); None is the default, 0 a bad value
-    cutoff_hz = default_cutoff(Ts) if cutoff_hz is None else positive(cutoff_hz, "cutoff_hz")
+    cutoff_hz = default_cutoff(Ts) if cutoff_hz is None else finite_number(cutoff_hz, "cutoff_hz", positive=True)
     gains, metrics = {}, {}
     for ax in axes:
         Phi, Y = [], []
