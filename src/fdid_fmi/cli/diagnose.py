@@ -13,8 +13,6 @@ import sys
 from ..errors import InputError
 from ..model import DriveModel, load_model
 from ..outputs import atomic_write, check_output, same_file
-
-MIN_SAMPLES = 200     # samples of each trace (or half) the diagnosis fits or judges on
 from .argtypes import fraction, int_in
 from .mapping import add_trace_arguments, single_range, trace_from_args
 
@@ -90,7 +88,7 @@ def run(args):
         raise InputError(f"--maxiter must be in 1 .. 10000, got {args.maxiter}", column="--maxiter")
     from . import naming
     from ..diagnose.augment import recipe_from_model
-    from ..diagnose.loop import split_blocks
+    from ..diagnose.loop import MIN_SAMPLES, split_blocks
     model = load_model(args.model)
     if not isinstance(model, DriveModel):
         raise InputError("diagnosis refits the model with the pole search and needs a pole-search or MIMO "

@@ -271,8 +271,9 @@ def run_master(fmu_path, t, inputs, outputs, start_values=None, step_size=None):
     after ``doStep(t[k-1], step_size)``)
     """
     from fmpy import read_model_description, simulate_fmu
-    md = read_model_description(str(fmu_path))
-    h = float(step_size if step_size is not None else md.defaultExperiment.stepSize)
+    if step_size is None:
+        step_size = read_model_description(str(fmu_path)).defaultExperiment.stepSize
+    h = float(step_size)
     sig = np.zeros(len(t), dtype=[("time", float)] + [(k, float) for k in inputs])
     sig["time"] = t
     for k, v in inputs.items():
@@ -393,7 +394,7 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
         raise InputError(f"the FMU could not be run through fmpy.simulate_fmu ({exc}){hint}",
                          source=str(fmu_path)) from None
     dt = time.perf_counter() - t0
-    res.fmi_version = _fmi_version(fmu_path)
+    res.fmi_version = md.fmiVersion
     res.steps_per_second = (trace.n + R) / dt if dt > 0 else float("nan")
     for key, v in out.items():
         bad = ~np.isfinite(v)
@@ -481,8 +482,3 @@ def _model_description(fmu_path):
         return read_model_description(str(fmu_path), validate=False)
     except Exception as exc:  # noqa: BLE001 - fmpy / lxml raise plain exceptions on a damaged file
         raise InputError(f"the FMU's modelDescription.xml cannot be read ({exc})", source=str(fmu_path)) from None
-
-
-def _fmi_version(fmu_path):
-    from fmpy import read_model_description
-    return read_model_description(str(fmu_path)).fmiVersion
