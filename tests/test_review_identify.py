@@ -49,6 +49,15 @@ def run(capsys, *args):
     return code, out, err
 
 
+def identify_strict(capsys, tmp_path, trace, *args):
+    """``fdid identify`` on ``trace`` (as run.csv, model to m.json) with RuntimeWarnings turned
+    into errors: an overflow warning would be a second stderr line. Returns (code, out, err)."""
+    csv = write_csv(tmp_path / "run.csv", trace)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        return run(capsys, "identify", csv, *args, "-o", tmp_path / "m.json")
+
+
 def one_line(code, err, *words):
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert code == 2, (code, err)
@@ -68,11 +77,8 @@ def test_bounds_no_filter_can_represent_are_one_line_not_an_internal_error(capsy
     # --zeta 0.1:1e308 made every candidate's polynomial overflow; the LS projection then returned
     # a bare Fit where the caller unpacked (fit, residuals): "internal error: TypeError", after
     # an overflow RuntimeWarning (a second stderr line; turned into an error here)
-    csv = write_csv(tmp_path / "run.csv", trace)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", RuntimeWarning)
-        code, _, err = run(capsys, "identify", csv, "--structure", "rigid", "--same-sample", "hold",
-                           "--maxiter", "3", "--zeta", "0.1:1e308", "-o", tmp_path / "m.json")
+    code, _, err = identify_strict(capsys, tmp_path, trace, "--structure", "rigid", "--same-sample", "hold",
+                                   "--maxiter", "3", "--zeta", "0.1:1e308")
     one_line(code, err, "run.csv", "no usable model", "narrow the bounds")
     assert not (tmp_path / "m.json").exists()
 
@@ -208,11 +214,8 @@ def test_stuck_axis_names_the_measured_position_not_the_bounds(capsys, tmp_path,
 def test_absurd_fixed_v_tilde_is_not_blamed_on_a_column_of_the_trace(capsys, tmp_path, trace):
     # --v-tilde 1e308: a friction regressor of 1e-306 unscaled into infinite numerators; the
     # model check then said "run.csv, column 'C': contains NaN or inf" (no such column)
-    csv = write_csv(tmp_path / "run.csv", trace)
-    with warnings.catch_warnings():       # an overflow warning was a second stderr line
-        warnings.simplefilter("error", RuntimeWarning)
-        code, _, err = run(capsys, "identify", csv, "--structure", "rigid", "--same-sample", "hold",
-                           "--maxiter", "2", "--v-tilde", "1e308", "-o", tmp_path / "m.json")
+    code, _, err = identify_strict(capsys, tmp_path, trace, "--structure", "rigid", "--same-sample", "hold",
+                                   "--maxiter", "2", "--v-tilde", "1e308")
     line = one_line(code, err, "no usable model", "v_tilde")
     assert "column 'C'" not in line
     assert not (tmp_path / "m.json").exists()
@@ -232,11 +235,8 @@ def test_outputs_without_a_position_are_one_line(capsys, tmp_path, trace, output
 
 def test_absurd_dc_gain_value_is_named(capsys, tmp_path, trace):
     # the error blamed poles, damping or v_tilde, after six overflow warnings on stderr
-    csv = write_csv(tmp_path / "run.csv", trace)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", RuntimeWarning)
-        code, _, err = run(capsys, "identify", csv, "--method", "mimo", "--same-sample", "hold",
-                           "--maxiter", "2", "--dc-gain", "error=3:1e300", "-o", tmp_path / "m.json")
+    code, _, err = identify_strict(capsys, tmp_path, trace, "--method", "mimo", "--same-sample", "hold",
+                                   "--maxiter", "2", "--dc-gain", "error=3:1e300")
     one_line(code, err, "no usable model", "d.c.-gain value")
 
 
