@@ -13,7 +13,7 @@ import pytest
 from fdid_fmi.diagnose import augment as ag
 from fdid_fmi.diagnose import diagnose
 from fdid_fmi.diagnose.residuals import residuals
-from fdid_fmi.diagnose.limits import REVERSAL_SUSPECT, NoteKind, data_limits
+from fdid_fmi.diagnose.limits import LOST_MOTION_NOTE_MM, REVERSAL_SUSPECT, NoteKind, data_limits
 from fdid_fmi.identify import identify_mimo, identify_siso, mimo_structure
 from plant2 import scenarios as p2
 
@@ -38,6 +38,13 @@ def test_rules():
     assert data_limits(["x"], set(), conc, [{"kind": "stribeck", "axis": "x"}])[0].kind == NoteKind.NOT_OBSERVABLE
     assert data_limits(["x"], {"x"}, conc, []) == []
     assert data_limits(["x"], set(), {}, [])[0].kind == NoteKind.NOT_OBSERVABLE   # friction detector not run
+    # a tool channel: the lost motion the model carries is reported above LOST_MOTION_NOTE_MM only,
+    # and not beside a kept backlash
+    carried = data_limits(["x"], {"x"}, {}, [], {"x": 2 * LOST_MOTION_NOTE_MM})
+    assert [(n.kind, n.effect) for n in carried] == [(NoteKind.CARRIED, "backlash")]
+    assert "10.0 µm" in carried[0].text
+    assert data_limits(["x"], {"x"}, {}, [], {"x": 0.5 * LOST_MOTION_NOTE_MM}) == []
+    assert data_limits(["x"], {"x"}, {}, [{"kind": "backlash", "axis": "x"}], {"x": 0.02}) == []
 
 
 def test_backlash_with_the_motor_encoder_only_is_suspected_not_added():
@@ -106,6 +113,22 @@ def test_the_friction_to_the_tool_side_carries_the_lost_motion():
             assert 2 * abs(gain) == pytest.approx(0.015, rel=0.15)
     both = {k: np.hypot(r["x"]["rms_um"], r["x.tool"]["rms_um"]) for k, r in rms_um.items()}
     assert both[True] <= 0.6 * both[False]
+
+
+def test_a_model_that_carries_the_backlash_says_so():
+    """The default structure on the backlash axis with its tool channel carries the lost motion
+    (above): the diagnosis reports it as a note with its size, not silence (measured: 16.4 µm)."""
+    train, vals, _ = p2.scenario("backlash_tool")
+    va = next(v for v in vals if v.meta["name"] == "reversals")
+    st = mimo_structure(("x",), ("error", "tool_position"), n_real=1, n_complex=1, same_sample="hold")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = identify_mimo(train[0], st, seed=0, maxiter=20)
+        d = diagnose(m, train[0], va, detectors=["friction"], maxiter=20)
+    carried = [n for n in d.notes if n.kind == NoteKind.CARRIED]
+    assert [(n.axis, n.effect) for n in carried] == [("x", "backlash")]
+    assert carried[0].statistic == pytest.approx(0.015, rel=0.15)
+    assert "backlash" not in [e["kind"] for e in d.effects_added]
 
 
 def test_locked_refit_keeps_what_the_effect_does_not_feed():

@@ -49,7 +49,7 @@ from ..model import DriveModel
 from . import augment as ag
 from . import coupling, delay, friction, mode, order, periodic, whiteness
 from .base import Context, command_velocity, implausible
-from .limits import Note, NoteKind, data_limits, not_checked, order_too_low
+from .limits import Note, NoteKind, data_limits, lost_motion_carried, not_checked, order_too_low
 from .residuals import Residuals, residuals, split_halves
 
 DETECTORS = {"friction": friction, "mode": mode, "delay": delay, "periodic": periodic,
@@ -597,6 +597,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     tool_axes = {a for a, ar in res0["train"].axes.items() if ar.tool_residual is not None}
     conc = ({a: friction.concentration([res_cur["train"]], a, model.Ts) for a in model.axes}
             if "friction" in names else {})
-    diag.notes = order_notes + unchecked + data_limits(model.axes, tool_axes, conc, diag.effects_added)
+    lost = {a: lost_motion_carried(current, a) for a in tool_axes}
+    diag.notes = order_notes + unchecked + data_limits(model.axes, tool_axes, conc, diag.effects_added, lost)
     diag.wall_time_s = time.perf_counter() - t0
     return diag
