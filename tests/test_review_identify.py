@@ -211,14 +211,27 @@ def test_stuck_axis_names_the_measured_position_not_the_bounds(capsys, tmp_path,
     assert one_line(code, err, "never moves").count("never moves") == 1
 
 
-def test_absurd_fixed_v_tilde_is_not_blamed_on_a_column_of_the_trace(capsys, tmp_path, trace):
-    # --v-tilde 1e308: a friction regressor of 1e-306 unscaled into infinite numerators; the
+def test_absurd_fixed_v_tilde_is_not_blamed_on_a_column_of_the_trace(trace):
+    # v_tilde 1e308: a friction regressor of 1e-306 unscaled into infinite numerators; the
     # model check then said "run.csv, column 'C': contains NaN or inf" (no such column)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(InputError, match="no usable model") as exc:
+            idf.identify_siso(trace, "x", v_tilde=1e308, same_sample="hold", maxiter=2)
+    assert "v_tilde" in str(exc.value) and "column 'C'" not in str(exc.value)
+
+
+@pytest.mark.parametrize("factor", [1.0, 1e308])
+def test_v_tilde_the_axis_never_reaches_is_refused(capsys, tmp_path, trace, factor):
+    # --v-tilde at or above the axis's largest speed: sat(v/v_tilde) never saturated, and the
+    # friction input was identified as viscous friction without a word
+    vmax = np.max(np.abs(np.diff(trace.act("x")))) / TS
     code, _, err = identify_strict(capsys, tmp_path, trace, "--structure", "rigid", "--same-sample", "hold",
-                                   "--maxiter", "2", "--v-tilde", "1e308")
-    line = one_line(code, err, "no usable model", "v_tilde")
-    assert "column 'C'" not in line
+                                   "--maxiter", "2", "--v-tilde", repr(float(min(vmax * factor, 1e308))))
+    one_line(code, err, "--v-tilde", "largest measured speed of axis 'x'")
     assert not (tmp_path / "m.json").exists()
+    assert identify_strict(capsys, tmp_path, trace, "--structure", "rigid", "--same-sample", "hold",
+                           "--maxiter", "2", "--v-tilde", repr(float(0.2 * vmax)))[0] == 0
 
 
 # ----------------------------------------------------------------------------- mimo outputs

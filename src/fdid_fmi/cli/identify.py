@@ -4,6 +4,8 @@ from __future__ import annotations
 import math
 import sys
 
+import numpy as np
+
 from ..errors import InputError
 from ..model import DriveModel, check_name
 from ..outputs import check_output
@@ -268,6 +270,19 @@ def structure_is_auto(args):
     return not pinned
 
 
+def check_v_tilde(v_tilde, pieces, axes):
+    """Refuse a ``--v-tilde`` at or above an axis's largest measured speed (first differences of
+    its position): sat(v/v_tilde) would never saturate, and the friction input would be a viscous
+    term, not the Coulomb friction of thesis Eqn 4.10."""
+    for ax in axes:
+        vmax = max(float(np.max(np.abs(np.diff(p.act(ax))))) / p.Ts for p in pieces if p.n > 1)
+        if v_tilde >= vmax:
+            raise InputError(f"--v-tilde {v_tilde:g} mm/s is not below the largest measured speed of axis "
+                             f"'{ax}' ({vmax:.3g} mm/s): sat(v/v_tilde) would never saturate and the "
+                             f"friction input would act as viscous friction; give a smaller value or "
+                             f"leave it out to search it", source="--v-tilde")
+
+
 def identify_from_args(trace, args, progress=True):
     """Run the identification the arguments ask for; returns the model."""
     from .. import identify as idf
@@ -278,6 +293,8 @@ def identify_from_args(trace, args, progress=True):
                          source=trace.source)
     from ..identify.ranges import check_externals
     check_externals(trace, axes, getattr(args, "external", None) or (), what="--external")
+    if getattr(args, "v_tilde", None) is not None:
+        check_v_tilde(args.v_tilde, pieces, axes)
     if args.method == "quasi-static":
         return idf.identify_quasi_static(pieces, axes, cutoff_hz=args.cutoff_hz, order=args.filter_order)
     if args.method == "full-ls":
