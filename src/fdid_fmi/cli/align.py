@@ -33,7 +33,8 @@ def register(sub):
                     "encoder) onto the controller trace's time base and axes: time offset and clock "
                     "drift, accelerometer orientation (Eqn 7.1), gravity and bias, grid-plate angle "
                     "and origin, anti-alias resampling to Ts. Writes one trace with <axis>_tool_mm "
-                    "and <axis>_acc_mm_s2 for fdid identify / diagnose.")
+                    "and <axis>_acc_mm_s2 for fdid identify / diagnose, and every channel of the "
+                    "controller's trace, those without a role (currents, loads, status words) too.")
     p.add_argument("controller", help="the controller's trace (commanded and encoder positions)")
     p.add_argument("--acc", nargs="+", action="append", default=[], metavar="FILE_OR_KEY=VALUE",
                    help="accelerometer file and settings, e.g. --acc head.csv axes=x unit=g "
@@ -150,13 +151,19 @@ def run(args):
     res = align(ctrl, records, orientation=orient, lowpass_hz=args.lowpass, window_s=args.window,
                 max_offset_s=args.max_offset)
     print(res.table())
-    write_trace_csv(res.trace, args.output)
+    notes = []
+    write_trace_csv(res.trace, args.output, notes=notes)
     if args.json:
         atomic_write(args.json, res.to_json())
     tr = res.trace
     added = ", ".join(f"{a}.{r}" for a in tr.axes for r in ("tool", "acc") if tr.has(a, r))
     print(f"aligned trace: {tr.n} samples, {tr.t[0]:.4f} to {tr.t[-1]:.4f} s at Ts {tr.Ts:g} s, "
           f"{added} -> {args.output}" + (f"; estimates -> {args.json}" if args.json else ""))
+    kept = tr.extra_channels
+    if kept:       # the controller's channels without a role, on the same rows
+        print(f"kept {len(kept)} controller channel(s) without a role: {', '.join(kept)}")
+    for n in notes:
+        print(n)
     for m in res.missing:
         print(f"missing: {m}")
     return 0
