@@ -80,7 +80,7 @@ def test_night1_local_pool_with_broken_entries(fleet):
     # the fleet report: a JSON table (one row per entry) and the HTML with the one-line reasons
     d = json.loads((fleet["out1"] / "fleet.json").read_text())
     assert [r["machine"] + "/" + r["axis"] for r in d["table"]] == [e.key for e in fr.entries]
-    assert d["counts"] == {"entries": 7, "ok": 4, "failed": 3, "changed": 0}
+    assert d["counts"] == {"entries": 7, "ok": 4, "failed": 3, "validation_failed": 0, "changed": 0}
     html = (fleet["out1"] / "fleet.html").read_text()
     assert "no_such_file.csv" in html and "random-walk" in html
 

@@ -20,7 +20,9 @@ def summary_lines(fr):
     """Plain-text summary of a :class:`~.runner.FleetResult`."""
     n = len(fr.entries)
     ok = sum(e.ok for e in fr.entries)
-    lines = [f"fleet: {n} axes, {ok} done, {len(fr.failed)} failed; {len(fr.executed)} run now, "
+    nv = len(fr.validation_failed)
+    lines = [f"fleet: {n} axes, {ok} done, {len(fr.failed)} failed"
+             f"{f' ({nv} of them: FMU validation)' if nv else ''}; {len(fr.executed)} run now, "
              f"{len(fr.skipped)} unchanged since the last run (reused); {fr.wall_s:.1f} s on {fr.executor}"]
     if fr.previous:
         if fr.previous_version and fr.previous_version != fr.version:
@@ -36,10 +38,8 @@ def summary_lines(fr):
         if new:
             lines.append(f"  no previous model for: {', '.join(new)}")
     for e in fr.failed:
-        lines.append(f"  FAILED {e.key}: {e.error}")
-    bad = [e.key for e in fr.entries if e.ok and any(v.problems for v in e.validation)]
-    if bad:
-        lines.append(f"  FMU validation problems: {', '.join(bad)}")
+        what = "VALIDATION FAILED" if e.status == "validation_failed" else "FAILED"
+        lines.append(f"  {what} {e.key}: {e.error}")
     return lines
 
 
@@ -73,8 +73,9 @@ def fleet_report_html(fr):
                       caption="Change thresholds (fdid_fmi.fleet.compare.Thresholds; the manifest's "
                               "[thresholds] table sets them).")
     if fr.failed:
-        rep.add_table("failed", [{"axis": e.key, "reason": e.error} for e in fr.failed],
-                      caption="Entries that did not complete (the others did).")
+        rep.add_table("failed", [{"axis": e.key, "status": e.status, "reason": e.error} for e in fr.failed],
+                      caption="Entries that did not complete (the others did); validation_failed: every "
+                              "stage ran, but the FMU's validation found problems (its outputs are kept).")
     rows = table_rows(fr)
     rep.add_table("axes", [{k: _fmt(v) for k, v in r.items()} for r in rows],
                   caption="Every axis: FMU tracking-error discrepancy to the measurement (µm, worst held-out "

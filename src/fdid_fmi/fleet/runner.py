@@ -89,7 +89,13 @@ class FleetResult:
 
     @property
     def failed(self):
+        """Entries that did not complete, including those whose FMU validation failed."""
         return [e for e in self.entries if not e.ok]
+
+    @property
+    def validation_failed(self):
+        """Entries that ran every stage but whose FMU validation failed (status ``validation_failed``)."""
+        return [e for e in self.entries if e.status == "validation_failed"]
 
     @property
     def changed(self):
@@ -106,7 +112,8 @@ class FleetResult:
                 "started_utc": self.started_utc, "version": self.version,
                 "previous_version": self.previous_version,
                 "counts": {"entries": len(self.entries), "ok": sum(e.ok for e in self.entries),
-                           "failed": len(self.failed), "changed": len(self.changed)},
+                           "failed": len(self.failed), "validation_failed": len(self.validation_failed),
+                           "changed": len(self.changed)},
                 "table": table_rows(self), "entries": [e.to_dict() for e in self.entries]}
 
     @classmethod

@@ -37,7 +37,7 @@ from .compare import ChangeReport, ModelSignature, Thresholds, compare_models, m
 from .manifest import EntrySpec, file_digest, identify_args
 
 __all__ = ["StageTimes", "ValidationFigures", "PreviousModel", "WorkItem", "EntryResult", "run_entry",
-           "validate_entry_fmu", "ENTRY_FILE"]
+           "validate_entry_fmu", "validation_figures", "validation_failure", "ENTRY_FILE"]
 
 ENTRY_FILE = "entry.json"
 
@@ -57,17 +57,35 @@ class StageTimes:
 
 @dataclass
 class ValidationFigures:
-    """The FMU on one trace: discrepancy to the measurement and agreement with the reference."""
+    """The FMU on one trace: discrepancy to the measurement and agreement with the reference.
+
+    ``passed`` is ``fdid validate``'s verdict (:attr:`fdid_fmi.fmu.validate.ValidationResult.ok`:
+    no fmpy problem, no non-finite output, FMU within the tolerance of the reference simulator);
+    None in results written before it was recorded. The fleet also needs the discrepancy to the
+    measurement: a figure that is missing (the trace has no measured position of the axis) or not
+    finite fails the entry's validation as well (:meth:`failures`).
+    """
 
     trace: str
     rms_um: float
     max_um: float
     max_abs_diff_reference_mm: float
     problems: list = field(default_factory=list)
+    passed: bool | None = None
+
+    def failures(self):
+        """Why this validation fails the entry (one short text each; empty when it passes)."""
+        out = [f"{self.trace}: {p}" for p in self.problems]
+        if self.passed is False and not out:
+            out.append(f"{self.trace}: fdid validate did not pass the FMU")
+        if not all(isinstance(x, (int, float)) and np.isfinite(x) for x in (self.rms_um, self.max_um)):
+            out.append(f"{self.trace}: no finite tracking-error discrepancy of the FMU to the measurement "
+                       f"(the trace has no measured position of the axis, or the figure is not finite)")
+        return out
 
     @property
     def ok(self):
-        return not self.problems
+        return not self.failures()
 
 
 @dataclass(frozen=True)
@@ -107,7 +125,9 @@ class EntryResult:
     Attributes
     ----------
     machine, axis : str
-    status : ``ok`` or ``failed``
+    status : ``ok``, ``failed``, or ``validation_failed``: every stage ran but the FMU's validation
+             on a held-out trace found problems (:meth:`ValidationFigures.failures`; ``error``
+             names them); its outputs are kept for inspection and the next run redoes it
     input_hash : str          content hash of traces + options + version (see manifest.entry_hash)
     error : str or None       the one-line reason of a failure
     deterministic : bool      the failure follows from the inputs (bad file, option, data): a rerun
@@ -183,12 +203,25 @@ def validate_entry_fmu(fmu_path, trace, model, axis) -> ValidationFigures:
     difference from the reference simulator [mm] and the problems found.
     """
     from ..fmu.validate import validate_fmu
-    res = validate_fmu(fmu_path, trace, model=model)
+    return validation_figures(validate_fmu(fmu_path, trace, model=model), trace, axis)
+
+
+def validation_figures(res, trace, axis) -> ValidationFigures:
+    """The fleet's figures of a :class:`~fdid_fmi.fmu.validate.ValidationResult` on ``trace``, with
+    its verdict (``res.ok``, the one ``fdid validate`` gives as its exit code)."""
     d = res.axes.get(axis, {})
     return ValidationFigures(trace=Path(str(trace.source)).name, rms_um=float(d.get("rms_um", float("nan"))),
                              max_um=float(d.get("max_um", float("nan"))),
                              max_abs_diff_reference_mm=float(res.max_abs_diff_reference_mm),
-                             problems=list(res.problems))
+                             problems=list(res.problems), passed=bool(res.ok))
+
+
+def validation_failure(validation):
+    """One line naming why the entry's FMU validation fails (None when every trace passes)."""
+    reasons = [r for v in validation for r in v.failures()]
+    if not validation:
+        reasons = ["the FMU was not validated on any trace"]
+    return _one_line("FMU validation failed: " + "; ".join(reasons)) if reasons else None
 
 
 def channel_errors(model, traces, axis):
@@ -287,7 +320,8 @@ def run_entry(item: WorkItem) -> EntryResult:
 
     Returns
     -------
-    EntryResult  with ``status`` ``ok``, or ``failed`` and a one-line ``error``
+    EntryResult  with ``status`` ``ok``, or ``failed`` / ``validation_failed`` and a one-line
+                 ``error``
     """
     from ..model import load_model
     spec = item.spec
@@ -320,7 +354,11 @@ def run_entry(item: WorkItem) -> EntryResult:
             res.compare_key = item.compare_key
         else:
             res.change, res.compare_key = None, None
-        res.status, res.error, res.deterministic = "ok", None, False
+        # the validation's verdict decides (before: an entry was "ok" whatever it found); not
+        # kept for a rerun: the FMU's binary and its run depend on the worker's compiler and fmpy
+        failure = validation_failure(res.validation)
+        res.status, res.error, res.deterministic = ("validation_failed", failure, False) if failure else \
+            ("ok", None, False)
         res.spec, res.trace_digests = spec.to_dict(), digests
         tm.total_s = (time.perf_counter() - t_start if old is None else
                       tm.read_s + tm.identify_s + tm.export_s + tm.validate_s + tm.diagnose_s + tm.compare_s)
@@ -332,14 +370,15 @@ def run_entry(item: WorkItem) -> EntryResult:
         where = f" ({Path(last.filename).name}:{last.lineno})" if last else ""
         res.status, res.error, res.deterministic = "failed", _one_line(f"{type(exc).__name__}: {exc}{where}"), False
     res.finished_utc = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
-    if res.status != "ok":
+    built = res.status in ("ok", "validation_failed")     # every stage ran: outputs and a report
+    if res.status == "failed":
         res.timings.total_s = time.perf_counter() - t_start
         # a failure may come from the comparison (the previous model): it holds for this previous
         # result and these thresholds only
         res.compare_key = item.compare_key
     try:
-        if out.is_dir() or res.status == "ok":
-            if res.status == "ok":
+        if out.is_dir() or built:
+            if built:
                 _entry_report(res, out)
                 res.output_digests = {name: file_digest(out / f) for name, f in res.outputs.items()}
             _save_json(out / ENTRY_FILE, res.to_dict())
@@ -465,7 +504,7 @@ def _entry_report(res: EntryResult, out: Path):
     from ..report import Report
     rep = Report(f"Fleet entry {res.key}", meta={"input hash": res.input_hash[:16], "worker": res.worker})
     sig = res.signature
-    lines = [f"Status: {res.status}."]
+    lines = [f"Status: {res.status}." + (f" {res.error}" if res.error else "")]
     if sig is not None:
         lines.append("Poles [Hz]: " + ", ".join(f"{re:.3g}{im:+.3g}j" for re, im in sig.poles_hz)
                      + f"; friction step peak {sig.friction_peak_um or 0:.3g} µm; v_tilde "
@@ -477,7 +516,8 @@ def _entry_report(res: EntryResult, out: Path):
         rep.add_table("validation", [{"trace": v.trace, "e RMS discrepancy [µm]": v.rms_um,
                                       "e MAX discrepancy [µm]": v.max_um,
                                       "max |FMU - reference| [mm]": v.max_abs_diff_reference_mm,
-                                      "problems": len(v.problems)} for v in res.validation],
+                                      "problems": len(v.problems),
+                                      "passes": "yes" if v.ok else "no"} for v in res.validation],
                       caption="The FMU through fmpy on the held-out traces (the training trace when "
                               "there is none).")
     if res.errors_um:

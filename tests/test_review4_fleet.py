@@ -1,0 +1,86 @@
+"""Review 4, the fleet layer: an entry whose FMU validation fails is not "ok", the missing compiler
+is an error type (not a column name), manifest options are not abbreviated, and entry names that
+differ only in case are refused. Each test fails without the fix it guards (checked by reverting
+the fix)."""
+import json
+from pathlib import Path
+
+import pytest
+
+from fdid_fmi.errors import InputError
+from fdid_fmi.fleet.manifest import load_manifest, parse_manifest_text
+
+ENTRY = '[[entry]]\nmachine = "m01"\naxis = "x"\ntraces = ["a.csv"]\n'
+
+
+def _entries(text, fmt="toml"):
+    return parse_manifest_text(text, fmt, base="/tmp/fleet", source=f"plant.{fmt}").entries
+
+
+@pytest.fixture(scope="module")
+def unmeasured(tmp_path_factory):
+    """``fdid fleet run`` (CLI, local pool of one process) on one real entry whose held-out trace
+    has no measured position of the axis (its ``x_mm`` column removed): the FMU is exported and run
+    through fmpy, but no discrepancy to the measurement can be computed."""
+    from fdid_fmi.cli import main
+    from fdid_fmi.fleet.virtual import VirtualAxis, axis_trace, write_trace_csv
+    root = tmp_path_factory.mktemp("review4")
+    va = VirtualAxis("m01", "x", "deckel_maho_like")
+    write_trace_csv(axis_trace(va, 1, n_moves=3), "x", root / "x.csv")
+    full = write_trace_csv(axis_trace(va, 2, n_moves=3), "x", root / "full.csv")
+    rows = [ln.split(",") for ln in full.read_text().splitlines()]
+    drop = rows[0].index("x_mm")
+    (root / "held.csv").write_text("\n".join(",".join(c for i, c in enumerate(r) if i != drop) for r in rows) + "\n")
+    man = root / "plant.toml"
+    man.write_text('[[entry]]\nmachine = "m01"\naxis = "x"\ntraces = ["x.csv", "held.csv"]\n'
+                   'options = { diagnose = false, structure = "rigid", maxiter = 4 }\n')
+    out = root / "out"
+    rc = main(["fleet", "run", str(man), "--out", str(out), "--no-progress", "--workers", "1"])
+    return {"root": root, "man": man, "out": out, "rc": rc, "edir": out / "entries" / "m01__x"}
+
+
+# ----------------------------------------------------------------------------- 1. validation verdict
+def test_entry_whose_fmu_validation_fails_is_not_ok(unmeasured, capsys):
+    # the entry was "ok" (exit code 0, counts ok 1) with an FMU discrepancy of NaN -> null in
+    # fleet.json: nothing said the FMU had not been checked against the measurement
+    from fdid_fmi.fleet.manifest import entry_hash, software_version
+    from fdid_fmi.fleet.runner import _finished
+    out, edir = unmeasured["out"], unmeasured["edir"]
+    assert unmeasured["rc"] == 1
+    d = json.loads((out / "fleet.json").read_text())
+    assert d["counts"] == {"entries": 1, "ok": 0, "failed": 1, "validation_failed": 1, "changed": 0}
+    row, = d["table"]
+    assert row["status"] == "validation_failed"
+    assert "held.csv" in row["error"] and "discrepancy" in row["error"] and "\n" not in row["error"]
+    assert row["fmu_rms_um"] is None and row["fmu_vs_reference_mm"] <= 1e-9   # the FMU itself ran fine
+    # the summary (printed by the CLI, in fleet.html) names it and why
+    html = (out / "fleet.html").read_text()
+    assert "validation_failed" in html and "VALIDATION FAILED m01/x" in html
+    # every stage ran: the model, the FMU and the report are kept for inspection
+    ent = json.loads((edir / "entry.json").read_text())
+    assert ent["status"] == "validation_failed" and ent["validation"][0]["passed"] is True
+    assert {"model.json", "m01_x.fmu", "validation.json", "entry.html"} <= {p.name for p in edir.iterdir()}
+    # not kept as done: the next run redoes it
+    spec, = load_manifest(unmeasured["man"]).entries
+    assert _finished(edir, entry_hash(spec, software_version()), None) is None
+
+
+def test_validation_verdict_is_fdid_validate_s(unmeasured):
+    # the fleet's decision is ValidationResult.ok (fdid validate's exit code) plus a finite
+    # discrepancy: an FMU that misses the reference tolerance fails the entry, one that meets it
+    # passes (the successful path is unchanged)
+    from fdid_fmi.fleet.work import validation_failure, validation_figures
+    from fdid_fmi.fmu.validate import validate_fmu
+    from fdid_fmi.io import read_trace
+    edir = unmeasured["edir"]
+    trace = read_trace(unmeasured["root"] / "x.csv")
+    fmu, model = edir / "m01_x.fmu", edir / "model.json"
+    good = validation_figures(validate_fmu(fmu, trace, model=model), trace, "x")
+    assert good.passed and good.ok and validation_failure([good]) is None
+    strict = validate_fmu(fmu, trace, model=model, tolerance_mm=1e-300)   # |FMU - ref| ~ 1e-15 mm
+    assert not strict.ok
+    bad = validation_figures(strict, trace, "x")
+    assert bad.passed is False and not bad.ok
+    reason = validation_failure([good, bad])
+    assert reason.startswith("FMU validation failed: x.csv: FMU and reference simulator differ")
+
