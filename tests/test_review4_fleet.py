@@ -84,3 +84,24 @@ def test_validation_verdict_is_fdid_validate_s(unmeasured):
     reason = validation_failure([good, bad])
     assert reason.startswith("FMU validation failed: x.csv: FMU and reference simulator differ")
 
+
+# ----------------------------------------------------------------------------- 2. missing compiler
+def test_missing_compiler_is_told_by_its_type_not_by_a_column_name(unmeasured, tmp_path, monkeypatch):
+    # work.from_inputs took every InputError of column 'platforms' for "the compiler is not
+    # installed": an unknown platform name (an input's fault, refused by export_fmu with that
+    # column) was retried by every run as if a worker lacked gcc
+    from fdid_fmi.fleet.work import from_inputs
+    from fdid_fmi.fmu import export_fmu
+    from fdid_fmi.fmu.build import CompilerNotFound
+    edir, model = unmeasured["edir"], unmeasured["edir"] / "model.json"
+    with pytest.raises(InputError, match="unknown platform 'solaris'") as ei:
+        export_fmu(model, tmp_path / "m.fmu", platforms="solaris")
+    assert ei.value.column == "platforms" and not isinstance(ei.value, CompilerNotFound)
+    assert from_inputs(ei.value, edir)                      # kept: the inputs name no such platform
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))     # gcc is not on this "worker"
+    with pytest.raises(CompilerNotFound, match="not installed") as ei:
+        export_fmu(model, tmp_path / "m.fmu")
+    assert isinstance(ei.value, InputError)                 # the CLI still reports it in one line, exit 2
+    assert not from_inputs(ei.value, edir)                  # retried: the worker's environment
+    assert not (tmp_path / "m.fmu").exists()
+

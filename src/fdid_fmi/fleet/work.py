@@ -396,12 +396,10 @@ def from_inputs(exc, entry_dir) -> bool:
     a rerun with the same inputs may reuse it. Not so: the C compiler missing on this worker or
     failing (killed, out of memory), an output of the entry's own folder that cannot be written
     (disk full) -- those were kept as failed by every rerun until the inputs changed."""
-    from ..fmu.build import BuildError
-    if isinstance(exc, BuildError):
+    from ..fmu.build import BuildError, CompilerNotFound
+    if isinstance(exc, (BuildError, CompilerNotFound)):
         return False
     if isinstance(exc, InputError):
-        if exc.column == "platforms":            # build.compile: the compiler is not installed
-            return False
         if exc.source:
             try:
                 Path(exc.source).resolve().relative_to(Path(entry_dir).resolve())

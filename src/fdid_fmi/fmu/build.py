@@ -22,6 +22,11 @@ class BuildError(FdidError):
     """The C compiler failed (the message carries its output)."""
 
 
+class CompilerNotFound(InputError):
+    """The C compiler of a platform is not installed on this machine: a fault of the environment,
+    not of the model or the options (the fleet retries an entry that met it on a worker)."""
+
+
 @dataclass(frozen=True)
 class Platform:
     name: str          # fdid name: linux64 / win64
@@ -59,7 +64,7 @@ def compile_binary(src_dir, sources, out_file, platform, uses_libm):
 
     Raises
     ------
-    InputError   when the compiler of the platform is not installed
+    CompilerNotFound  (an InputError) when the compiler of the platform is not installed
     BuildError   when compilation fails (with the compiler's messages)
     """
     p = _platform(platform)
@@ -67,8 +72,8 @@ def compile_binary(src_dir, sources, out_file, platform, uses_libm):
     if cc is None:
         hint = (" (Debian/Ubuntu: apt-get install gcc-mingw-w64-x86-64)" if platform == "win64"
                 else " (install gcc)")
-        raise InputError(f"the {platform} compiler '{p.compiler}' is not installed{hint}",
-                         column="platforms")
+        raise CompilerNotFound(f"the {platform} compiler '{p.compiler}' is not installed{hint}",
+                               column="platforms")
     out_file = Path(out_file)
     out_file.parent.mkdir(parents=True, exist_ok=True)
     cmd = [cc, *CFLAGS, *p.extra, "-shared", "-I", str(src_dir),
