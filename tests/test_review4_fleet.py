@@ -105,3 +105,27 @@ def test_missing_compiler_is_told_by_its_type_not_by_a_column_name(unmeasured, t
     assert not from_inputs(ei.value, edir)                  # retried: the worker's environment
     assert not (tmp_path / "m.fmu").exists()
 
+
+# ----------------------------------------------------------------------------- 3. abbreviated options
+@pytest.mark.parametrize("fmt,text", [
+    ("toml", ENTRY + "options = { max = 5 }\n"),
+    ("csv", "machine,axis,traces,options\nm01,x,a.csv,max=5\n")])
+def test_abbreviated_option_is_refused(fmt, text):
+    # 'max = 5' was taken by argparse as --maxiter 5 without a word
+    e, = _entries(text, fmt)
+    assert e.error is not None and "\n" not in e.error
+    assert e.error.startswith(f"plant.{fmt}, column 'max': entry ") and "(m01/x)" in e.error
+    assert "option 'max'" in e.error and "maxiter" in e.error and "in full" in e.error
+
+
+def test_option_parser_allows_no_abbreviation():
+    # the fleet's fdid identify parser (also used by the workers) completed --max to --maxiter
+    from fdid_fmi.fleet.manifest import EntrySpec, identify_args
+    spec = EntrySpec("m01", "x", ("/tmp/fleet/a.csv",), identify=("--max", "5"))
+    with pytest.raises(InputError, match="--max"):
+        identify_args("/tmp/fleet/a.csv", spec)
+    full = EntrySpec("m01", "x", ("/tmp/fleet/a.csv",), identify=("--maxiter", "5"))
+    assert identify_args("/tmp/fleet/a.csv", full).maxiter == 5
+    ok, = _entries(ENTRY + "options = { maxiter = 5, ma_order = 2 }\n")
+    assert ok.error is None and ok.identify == ("--maxiter", "5", "--ma-order", "2")
+

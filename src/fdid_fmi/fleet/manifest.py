@@ -128,7 +128,13 @@ class Manifest:
 
 # ----------------------------------------------------------------------------- option checking
 class _RaisingParser(argparse.ArgumentParser):
-    """An ArgumentParser that raises InputError instead of printing usage and exiting."""
+    """An ArgumentParser that raises InputError instead of printing usage and exiting, and takes
+    no abbreviation of an option (``--max`` was read as ``--maxiter``); the ``fdid identify``
+    sub-parser is of this class too (``add_subparsers`` makes its parsers of the parent's class)."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs["allow_abbrev"] = False
+        super().__init__(*args, **kwargs)
 
     def error(self, message):
         raise InputError(message, column="options")
@@ -166,6 +172,30 @@ def _repeatable_options():
     sub = next(a for a in _identify_parser()._actions if isinstance(a, argparse._SubParsersAction))
     return {a.dest for a in sub.choices["identify"]._actions
             if isinstance(a, (argparse._AppendAction, argparse._ExtendAction))}
+
+
+def _long_options():
+    """Every long option string of ``fdid identify`` (``--maxiter``, ``--map``, ...)."""
+    sub = next(a for a in _identify_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    return {s for a in sub.choices["identify"]._actions for s in a.option_strings if s.startswith("--")}
+
+
+def _refuse_abbreviations(options: dict, where, entry):
+    """An option key that only begins an ``fdid identify`` option's name (``max`` for ``maxiter``)
+    is refused naming the options it abbreviates (the parser refuses it as well, less clearly)."""
+    names = None
+    for k in options:
+        if k in FLEET_OPTIONS or k in _NOT_OPTIONS:
+            continue
+        flag = "--" + str(k).replace("_", "-")
+        names = _long_options() if names is None else names
+        if flag in names:
+            continue
+        full = sorted(n[2:].replace("-", "_") for n in names if n.startswith(flag))
+        if full:
+            raise InputError(f"{entry}: option '{k}' is not an option of fdid identify but abbreviates "
+                             f"{' or '.join(repr(f) for f in full)}: write the option name in full "
+                             f"(abbreviations are not accepted)", source=where, column=k)
 
 
 def _option_tokens(options: dict, where, axis=None):
@@ -271,6 +301,7 @@ def _build_entry(raw: dict, defaults: dict, base: Path, row: int, where: str) ->
         mapping = {str(k): str(v) for k, v in mapping.items()}
         units = {str(k): str(v) for k, v in units.items()}
         diagnose, det, fmi = _fleet_options(options, where)
+        _refuse_abbreviations(options, where, f"entry {row} ({machine}/{axis})")
         spec = EntrySpec(machine, axis, paths, mapping, units, _option_tokens(options, where, axis), diagnose,
                          det, fmi, row)
         # the fdid identify parser checks option names and values (not the files)
