@@ -129,3 +129,21 @@ def test_option_parser_allows_no_abbreviation():
     ok, = _entries(ENTRY + "options = { maxiter = 5, ma_order = 2 }\n")
     assert ok.error is None and ok.identify == ("--maxiter", "5", "--ma-order", "2")
 
+
+# ----------------------------------------------------------------------------- 4. names and case
+@pytest.mark.parametrize("second", ['machine = "M01"\naxis = "x"', 'machine = "m01"\naxis = "X"'])
+def test_entries_differing_only_in_case_are_refused(second):
+    # m01/x and M01/x (or m01/X) wrote entries/m01__x and entries/M01__x: one folder on macOS and
+    # Windows, where the second entry overwrote the first's model and FMU
+    text = ENTRY + ENTRY.replace('machine = "m01"\naxis = "x"', second).replace("a.csv", "b.csv")
+    with pytest.raises(InputError) as ei:
+        _entries(text)
+    msg = str(ei.value)
+    other = "M01/x" if "M01" in second else "m01/X"
+    assert msg.startswith("plant.toml: ") and "m01/x" in msg and other in msg and "\n" not in msg
+    assert "entries 1 and 2" in msg and "case" in msg
+    # a CSV manifest too
+    with pytest.raises(InputError, match="case"):
+        _entries("machine,axis,traces\nm01,x,a.csv\nM01,x,b.csv\n", "csv")
+    # different names still pass
+    assert len(_entries(ENTRY + ENTRY.replace('"m01"', '"m011"'))) == 2

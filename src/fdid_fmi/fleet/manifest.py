@@ -350,7 +350,8 @@ def parse_manifest_text(text, fmt, base=".", source="<manifest>") -> Manifest:
     Raises
     ------
     InputError  the file as a whole cannot be read (bad TOML/CSV syntax, no entries, two entries
-                for the same machine/axis); problems of one entry go to its ``error`` instead.
+                for the same machine/axis, or for names that differ only in upper/lower case);
+                problems of one entry go to its ``error`` instead.
     """
     base = Path(base)
     if text.startswith("\ufeff"):      # a byte-order mark (a spreadsheet's "CSV UTF-8")
@@ -425,14 +426,22 @@ def parse_manifest_text(text, fmt, base=".", source="<manifest>") -> Manifest:
                                      row=row, error=" ".join(raw["_bad"].split())))
             continue
         entries.append(_build_entry(raw, defaults, base, row, source))
-    seen, folders = {}, {}
+    seen, folders, cased = {}, {}, {}
     for e in entries:       # a repeated key would share one result and one output folder
         if e.key in seen:
             raise InputError(f"{e.key} is listed twice (entries {seen[e.key]} and {e.row})", source=source)
         if e.dirname in folders:
             raise InputError(f"{e.key} and {folders[e.dirname]} would write the same folder "
                              f"entries/{e.dirname}; rename one (no '__' in names)", source=source)
+        # M01/x and m01/x: one folder on a case-insensitive file system (macOS, Windows), where the
+        # second entry would overwrite the first's model and FMU
+        first = cased.get(e.dirname.casefold())
+        if first is not None:
+            raise InputError(f"{first[0]} and {e.key} (entries {first[1]} and {e.row}) would write the folders "
+                             f"entries/{first[2]} and entries/{e.dirname}, which differ only in upper/lower "
+                             f"case: one folder on macOS and Windows; rename one", source=source)
         seen[e.key], folders[e.dirname] = e.row, e.key
+        cased[e.dirname.casefold()] = (e.key, e.row, e.dirname)
     return Manifest(entries, dict(thresholds), source)
 
 
