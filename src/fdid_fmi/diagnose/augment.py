@@ -493,6 +493,16 @@ def is_tool_side(o):
     return o.kind in TOOL_KINDS or getattr(o, "predicts", None) in TOOL_KINDS
 
 
+def carries_lost_motion(recipe, axis):
+    """True when the friction input of ``axis`` reaches a tool-side output with a d.c. term
+    (``identify.structure.default_mask``): the model carries a lost motion itself, and a backlash
+    feature sat(v/v_b) at v_b = v_tilde would be the same regressor there (recipe masks hold
+    s-powers: the d.c. term is power 0)."""
+    fric = [s.name for s in recipe.inputs if s.kind == "friction" and s.axis == axis]
+    return any(0 in recipe.masks.get((o.name, f), ()) for o in recipe.outputs
+               if o.axis == axis and o.kind in TOOL_KINDS for f in fric)
+
+
 def add_tool_output(recipe, axis):
     """Recipe with a fitted tool-side output (tool_error, same inputs and masks as the error);
     unchanged when an output of the axis already is or predicts the tool side (:func:`is_tool_side`)."""

@@ -139,7 +139,10 @@ def _detect_axis(ctx, a):
                               "give the same offset in position data")
         if tm.size < MIN_MOVES:
             cand.not_checked = f"the training trace has {tm.size} move(s); the t statistic needs {MIN_MOVES}"
-        if cand.detected:
+        if cand.detected and ag.carries_lost_motion(ctx.recipe, a):
+            cand.note += ("; not refitted: the model's friction already reaches the tool side with a d.c. "
+                          "gain, the same regressor (the note 'carried' gives the lost motion it carries)")
+        elif cand.detected:
             vt = ctx.recipe.v_tilde.get(a, 1.0)
             cand.recipe = ag.add_backlash(ctx.recipe, a, vt)
             cand.reference = ag.add_tool_output(ctx.recipe, a)

@@ -93,14 +93,22 @@ class Note:
 
 
 def lost_motion_carried(model, axis):
-    """Lost motion (mm) the model carries between the motor and the tool side of ``axis``: twice
-    the d.c. gain from its friction input to its tool-side output; None without such a pair."""
+    """Lost motion (mm) the model carries between the motor and the tool side of ``axis``.
+
+    The friction input is ``level`` sat(v/v_tilde), +-``level`` while the axis moves; with d.c.
+    gains G_t to the tool-side output and G_m to the motor-side position (zero with integral
+    action; without it the motor lags too), the tool moves against the motor by
+    2 level |G_t - G_m| between the two directions. None when the model has no friction input,
+    no tool-side output or no motor-side position for the axis.
+    """
     i = model.input_index("friction", axis)
-    outs = [model.output_index(k, axis) for k in TOOL_KINDS]
-    o = next((k for k in outs if k is not None), None)
-    if i is None or o is None:
+    o = next((k for k in (model.output_index(kind, axis) for kind in TOOL_KINDS) if k is not None), None)
+    p = model.output_index("position", axis)
+    if i is None or o is None or p is None or model.position_side(axis) != "motor":
         return None
-    return 2.0 * abs(float(model.steady_state_maps()[2][o, i]))
+    G = model.steady_state_maps()[2]
+    level = float(model.inputs[i].params.get("level", 1.0))
+    return 2.0 * level * abs(float(G[o, i] - G[p, i]))
 
 
 def data_limits(axes, tool_axes, concentration, kept, lost_motion=None):
@@ -113,7 +121,7 @@ def data_limits(axes, tool_axes, concentration, kept, lost_motion=None):
     concentration : dict axis -> the final model's reversal-concentration statistic on the
         training trace (:func:`.friction.concentration`); an effect that was kept may explain it
         (plant2's 52 Hz mode: 21.8 with the model as given, 17.6 with the mode added)
-    kept : effect dicts that were kept (``Diagnosis.effects_added``)
+    kept : effect dicts that were kept (``Diagnosis.effects_added``) or that the model had already
     lost_motion : dict axis -> :func:`lost_motion_carried` of the final model (mm or None)
 
     Returns

@@ -598,6 +598,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     conc = ({a: friction.concentration([res_cur["train"]], a, model.Ts) for a in model.axes}
             if "friction" in names else {})
     lost = {a: lost_motion_carried(current, a) for a in tool_axes}
-    diag.notes = order_notes + unchecked + data_limits(model.axes, tool_axes, conc, diag.effects_added, lost)
+    kept = diag.effects_added + [e for e in (model.effects or []) if e not in diag.effects_added]
+    diag.notes = order_notes + unchecked + data_limits(model.axes, tool_axes, conc, kept, lost)
     diag.wall_time_s = time.perf_counter() - t0
     return diag
