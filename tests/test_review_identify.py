@@ -228,10 +228,35 @@ def test_v_tilde_the_axis_never_reaches_is_refused(capsys, tmp_path, trace, fact
     vmax = np.max(np.abs(np.diff(trace.act("x")))) / TS
     code, _, err = identify_strict(capsys, tmp_path, trace, "--structure", "rigid", "--same-sample", "hold",
                                    "--maxiter", "2", "--v-tilde", repr(float(min(vmax * factor, 1e308))))
-    one_line(code, err, "--v-tilde", "largest measured speed of axis 'x'")
+    one_line(code, err, "--v-tilde", "largest speed of axis 'x'")
     assert not (tmp_path / "m.json").exists()
     assert identify_strict(capsys, tmp_path, trace, "--structure", "rigid", "--same-sample", "hold",
                            "--maxiter", "2", "--v-tilde", repr(float(0.2 * vmax)))[0] == 0
+    # the low end of a search range: the written v_tilde came from 200:300 on a 154 mm/s trace
+    code, _, err = identify_strict(capsys, tmp_path, trace, "--structure", "rigid", "--same-sample", "hold",
+                                   "--maxiter", "2", "--v-tilde-range",
+                                   f"{float(min(vmax * factor, 1e300))!r}:{float(2 * min(vmax * factor, 1e300))!r}")
+    one_line(code, err, "--v-tilde-range", "largest speed of axis 'x'")
+
+
+def test_v_tilde_check_uses_the_velocity_the_friction_is_built_from(capsys, tmp_path, trace):
+    # an axis recorded without its measured position (command and tool side only): the engine
+    # builds sat(v/v_tilde) from the command, and a v_tilde far below its speed was refused for
+    # the missing 'act' channel
+    t = Trace.from_arrays(trace.t, {"x": {"cmd": trace.cmd("x"), "tool": trace.act("x")}}, source="<noact>")
+    from fdid_fmi.cli.identify import check_v_tilde
+    check_v_tilde(1.0, [t], ["x"])                           # 1 mm/s against ~150 mm/s: accepted
+    with pytest.raises(InputError, match="largest speed of axis 'x'"):
+        check_v_tilde(1e3, [t], ["x"])
+    # the filtered velocity: a moving average of 25 samples lowers the peak speed of a noisy
+    # encoder (20 µm RMS at 1 kHz: ~30 mm/s of noise in the raw difference)
+    noisy = with_channel(trace, "x_act", trace.act("x") + 0.02 * np.random.default_rng(0).standard_normal(trace.n))
+    from fdid_fmi.identify.lsfit import position_and_velocity
+    v1, v25 = (np.max(np.abs(position_and_velocity(noisy, "x", k)[1])) for k in (1, 25))
+    assert v25 < 0.8 * v1
+    check_v_tilde(0.5 * (v1 + v25), [noisy], ["x"], ma_order=1)
+    with pytest.raises(InputError, match="largest speed"):
+        check_v_tilde(0.5 * (v1 + v25), [noisy], ["x"], ma_order=25)
 
 
 # ----------------------------------------------------------------------------- mimo outputs

@@ -270,17 +270,17 @@ def structure_is_auto(args):
     return not pinned
 
 
-def check_v_tilde(v_tilde, pieces, axes):
-    """Refuse a ``--v-tilde`` at or above an axis's largest measured speed (first differences of
-    its position): sat(v/v_tilde) would never saturate, and the friction input would be a viscous
-    term, not the Coulomb friction of thesis Eqn 4.10."""
+def check_v_tilde(low, pieces, axes, ma_order=1, velocity="backward", option="--v-tilde"):
+    """Refuse a fixed v_tilde (or the low end of its search range) at or above an axis's largest
+    speed, the velocity the friction regressor sat(v/v_tilde) of thesis Eqn 4.10 is built from:
+    it would never saturate on these data (the default search range is 1e-4 to 0.3 x that speed)."""
+    from ..identify.lsfit import position_and_velocity
     for ax in axes:
-        vmax = max(float(np.max(np.abs(np.diff(p.act(ax))))) / p.Ts for p in pieces if p.n > 1)
-        if v_tilde >= vmax:
-            raise InputError(f"--v-tilde {v_tilde:g} mm/s is not below the largest measured speed of axis "
-                             f"'{ax}' ({vmax:.3g} mm/s): sat(v/v_tilde) would never saturate and the "
-                             f"friction input would act as viscous friction; give a smaller value or "
-                             f"leave it out to search it", source="--v-tilde")
+        vmax = max(float(np.max(np.abs(position_and_velocity(p, ax, ma_order, velocity)[1]))) for p in pieces)
+        if low >= vmax:
+            raise InputError(f"{option} {low:g} mm/s is not below the largest speed of axis '{ax}' in the "
+                             f"data ({vmax:.3g} mm/s): sat(v/v_tilde) would never saturate; give a "
+                             f"smaller value or leave it out to search it", source=option)
 
 
 def identify_from_args(trace, args, progress=True):
@@ -293,8 +293,11 @@ def identify_from_args(trace, args, progress=True):
                          source=trace.source)
     from ..identify.ranges import check_externals
     check_externals(trace, axes, getattr(args, "external", None) or (), what="--external")
-    if getattr(args, "v_tilde", None) is not None:
-        check_v_tilde(args.v_tilde, pieces, axes)
+    vt_low = (args.v_tilde, "--v-tilde") if getattr(args, "v_tilde", None) is not None else \
+        ((_range(args.v_tilde_range, "--v-tilde-range")[0], "--v-tilde-range")
+         if getattr(args, "v_tilde_range", None) else None)
+    if vt_low is not None:
+        check_v_tilde(vt_low[0], pieces, axes, args.ma_order, args.velocity, vt_low[1])
     if args.method == "quasi-static":
         return idf.identify_quasi_static(pieces, axes, cutoff_hz=args.cutoff_hz, order=args.filter_order)
     if args.method == "full-ls":

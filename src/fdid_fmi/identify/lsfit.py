@@ -52,6 +52,16 @@ class Fit:
     v_tilde: dict               # axis -> v_tilde used
 
 
+def position_and_velocity(tr, axis, ma_order=1, velocity="backward"):
+    """The position (mm) and velocity (mm/s) of ``axis`` the friction regressor sat(v/v_tilde) is
+    built from: the measured position (the command where none is recorded) and the drive's
+    velocity channel, else the filtered difference of that position (``measured_velocity``)."""
+    x = np.asarray(tr.act(axis) if tr.has(axis, "act") else tr.cmd(axis), float)
+    v = (np.asarray(tr.get(axis, "vel"), float) if tr.has(axis, "vel")
+         else measured_velocity(x, tr.Ts, ma_order, velocity))
+    return x, v
+
+
 class LSProblem:
     """The data of an identification, ready for fast repeated LS projections.
 
@@ -143,9 +153,7 @@ class LSProblem:
         dw = np.zeros(self.m)
         vel, pos = {}, {}
         for ax in s.axes:
-            x = np.asarray(tr.act(ax), float) if tr.has(ax, "act") else cmds[ax]
-            v = (np.asarray(tr.get(ax, "vel"), float) if tr.has(ax, "vel")
-                 else measured_velocity(x, tr.Ts, s.ma_order, s.velocity))
+            x, v = position_and_velocity(tr, ax, s.ma_order, s.velocity)
             pre = ext[ax][:R]
             vpre = np.diff(ext[ax][: R + 1]) / tr.Ts if R else np.zeros(0)
             pos[ax] = np.concatenate([pre - cmds[ax][0] + x[0], x])
