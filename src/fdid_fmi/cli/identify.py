@@ -293,11 +293,11 @@ def identify_from_args(trace, args, progress=True):
                          source=trace.source)
     from ..identify.ranges import check_externals
     check_externals(trace, axes, getattr(args, "external", None) or (), what="--external")
-    vt_low = (args.v_tilde, "--v-tilde") if getattr(args, "v_tilde", None) is not None else \
-        ((_range(args.v_tilde_range, "--v-tilde-range")[0], "--v-tilde-range")
-         if getattr(args, "v_tilde_range", None) else None)
-    if vt_low is not None:
-        check_v_tilde(vt_low[0], pieces, axes, args.ma_order, args.velocity, vt_low[1])
+    if getattr(args, "v_tilde", None) is not None:
+        check_v_tilde(args.v_tilde, pieces, axes, args.ma_order, args.velocity, "--v-tilde")
+    elif getattr(args, "v_tilde_range", None):
+        low = _range(args.v_tilde_range, "--v-tilde-range")[0]
+        check_v_tilde(low, pieces, axes, args.ma_order, args.velocity, "--v-tilde-range")
     if args.method == "quasi-static":
         return idf.identify_quasi_static(pieces, axes, cutoff_hz=args.cutoff_hz, order=args.filter_order)
     if args.method == "full-ls":

@@ -18,11 +18,13 @@ effect's; the user should hear so instead of silence:
                     suspected, and without a tool-side channel it cannot be identified.
 
 ``carried``         the final model carries a lost motion between motor and tool side itself:
-                    its friction input (sat(v/v_tilde) = +-1 while moving) reaches the tool-side
-                    output with a d.c. gain G (``identify.structure.default_mask``), a lost
-                    motion of 2 |G|. Backlash and the elastic deflection of a drive train with
-                    friction on the tool side (2 F/k) give it alike; the note says how large it
-                    is and that position data cannot tell the two apart.
+                    its friction input (level sat(v/v_tilde) = +-level while moving) reaches the
+                    tool-side output with a d.c. gain G_t (``identify.structure.default_mask``)
+                    and the motor-side position with G_m (zero with integral action), a lost
+                    motion of 2 level |G_t - G_m| (:func:`lost_motion_carried`). Backlash and the
+                    elastic deflection of a drive train with friction on the tool side (2 F/k)
+                    give it alike; the note says how large it is and that position data cannot
+                    tell the two apart.
 
 ``not_checked``     a detector could not test for its effect on these data (too few moves, no
                     command energy in its band, too little constant-velocity motion, no
@@ -48,8 +50,9 @@ note covers.
 Threshold of ``carried`` (``LOST_MOTION_NOTE_MM``), calibrated on the virtual drive (MIMO r1c1 of
 error and tool position, ad-hoc script): its flexible Y axis, without lost motion, reads 2.7 µm
 (the tool side's velocity-proportional lag projected on sat(v/v_tilde)), its 20 µm backlash 21.4
-µm: hence 5 µm. Measured on the second plant: its 15 µm backlash reads 16.4 µm, its flexible Y
-axis 15.6 µm (the 9 N of friction on its tool body over a 1140 N/mm drive train: 15.8 µm).
+µm: hence 5 µm. Measured on the second plant: its backlash axis reads 16.4 µm against 16.0 µm
+(15 µm of backlash, 1.0 µm of elastic deflection), its flexible Y axis 15.6 µm (the 9 N of
+friction on its tool body over a 1140 N/mm drive train: 15.8 µm).
 """
 from __future__ import annotations
 
@@ -136,7 +139,7 @@ def data_limits(axes, tool_axes, concentration, kept, lost_motion=None):
             if lm is not None and lm >= LOST_MOTION_NOTE_MM and "backlash" not in kept_here:
                 notes.append(Note(NoteKind.CARRIED, a, "backlash",
                                   f"axis {a}: the model carries a lost motion of {lm * 1e3:.1f} µm between "
-                                  "motor and tool side (twice its friction's d.c. gain to the tool side): "
+                                  "motor and tool side (its friction's d.c. gain to the tool side): "
                                   "backlash, or the elastic deflection of the drive train by friction on "
                                   "the tool side; position data cannot tell the two apart",
                                   lm, LOST_MOTION_NOTE_MM))
