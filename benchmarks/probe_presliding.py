@@ -70,7 +70,7 @@ def fit(cand, b, train, vals):
     for v in vals:
         s = simulate(m, v).axes[AXIS]
         row["held_out_um"][v.meta["name"]] = {"motor": rms(s["error"] - v.error(AXIS)) * 1e3,
-                                              "tool": rms(s["tool_position"] - v.get(AXIS, "tool")) * 1e3}
+                                              "tool": rms(s["tool_position"] - v.get(AXIS, "tool")) * 1e3 if "tool_position" in s else None}
     return row
 
 
