@@ -16,6 +16,7 @@ v_tilde) would be the product; this only measures whether it is worth building.
 Run: ``.venv/bin/python benchmarks/probe_presliding.py`` (about 3 min on 2 cores); writes
 ``benchmarks/results/probe_presliding.json`` and prints a table.
 """
+import argparse
 import json
 import sys
 import time
@@ -75,6 +76,7 @@ def fit(cand, b, train, vals):
 
 
 def main():
+    argparse.ArgumentParser(description=__doc__.split("\n")[0]).parse_args()
     warnings.simplefilter("ignore")
     train, vals, truth = p2.scenario("flexible_y")
     rows = [fit(c, b, train[0], vals) for b in WIDTHS_MM for c in CANDIDATES]

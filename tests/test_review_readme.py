@@ -16,7 +16,8 @@ ROOT = Path(__file__).resolve().parents[1]
 # tracked example traces (make_example_traces) or ended in a traceback (emps_identify)
 NO_PARSER_BEFORE = ["examples/align_virtual.py", "examples/diagnose_scenarios.py",
                     "examples/emps_identify.py", "examples/make_example_traces.py",
-                    "examples/fleet/write_traces.py", "benchmarks/bench_rest.py"]
+                    "examples/fleet/write_traces.py", "benchmarks/bench_rest.py",
+                    "benchmarks/probe_presliding.py"]
 
 
 @pytest.mark.parametrize("script", NO_PARSER_BEFORE)

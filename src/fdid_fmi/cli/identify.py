@@ -270,16 +270,17 @@ def structure_is_auto(args):
     return not pinned
 
 
-def check_v_tilde(low, pieces, axes, ma_order=1, velocity="backward", option="--v-tilde"):
-    """Refuse a fixed v_tilde (or the low end of its search range) at or above an axis's largest
-    speed, the velocity the friction regressor sat(v/v_tilde) of thesis Eqn 4.10 is built from:
-    it would never saturate on these data (the default search range is 1e-4 to 0.3 x that speed)."""
+def check_v_tilde(v_tilde, pieces, axes, ma_order=1, velocity="backward", option="--v-tilde"):
+    """Refuse a fixed v_tilde (or the upper end of its search range) at or above an axis's
+    largest speed, the velocity the friction regressor sat(v/v_tilde) of thesis Eqn 4.10 is built
+    from: it would never saturate on these data (the default search range is 1e-4 to 0.3 x that
+    speed)."""
     from ..identify.lsfit import position_and_velocity
     for ax in axes:
         vmax = max(float(np.max(np.abs(position_and_velocity(p, ax, ma_order, velocity)[1]))) for p in pieces)
-        if low >= vmax:
-            raise InputError(f"{option} {low:g} mm/s is not below the largest speed of axis '{ax}' in the "
-                             f"data ({vmax:.3g} mm/s): sat(v/v_tilde) would never saturate; give a "
+        if v_tilde >= vmax:
+            raise InputError(f"{option} {v_tilde:g} mm/s is not below the largest speed of axis '{ax}' in "
+                             f"the data ({vmax:.3g} mm/s): sat(v/v_tilde) would never saturate; give a "
                              f"smaller value or leave it out to search it", source=option)
 
 
@@ -296,8 +297,8 @@ def identify_from_args(trace, args, progress=True):
     if getattr(args, "v_tilde", None) is not None:
         check_v_tilde(args.v_tilde, pieces, axes, args.ma_order, args.velocity, "--v-tilde")
     elif getattr(args, "v_tilde_range", None):
-        low = _range(args.v_tilde_range, "--v-tilde-range")[0]
-        check_v_tilde(low, pieces, axes, args.ma_order, args.velocity, "--v-tilde-range")
+        high = _range(args.v_tilde_range, "--v-tilde-range")[1]
+        check_v_tilde(high, pieces, axes, args.ma_order, args.velocity, "--v-tilde-range (upper end)")
     if args.method == "quasi-static":
         return idf.identify_quasi_static(pieces, axes, cutoff_hz=args.cutoff_hz, order=args.filter_order)
     if args.method == "full-ls":

@@ -230,18 +230,20 @@ def channel_errors(model, traces, axis):
 
     Channels: ``motor`` (the encoder, ``act``) and ``tool`` (the ``tool`` channel, when the
     traces have one and the model predicts the motor side; a model fitted on the tool side has
-    only ``tool``).
+    only ``tool``). The tool channel is compared with the model's tool-side output where it has
+    one (it carries the drive train's lost motion), else with its motor-side position.
     """
     from ..simulate import simulate
     side = model.position_side(axis)
     acc, residuals = {}, {}
     for k, tr in enumerate(traces):
-        pos = simulate(model, tr).axes[axis]["position"]
+        out = simulate(model, tr).axes[axis]
+        pred = {"motor": out["position"], "tool": out.get("tool_position", out["position"])}
         chans = {"tool": "tool"} if side == "tool" else {"motor": "act", "tool": "tool"}
         for ch, role in chans.items():
             if not tr.has(axis, role):
                 continue
-            r = np.asarray(tr.get(axis, role), float) - pos
+            r = np.asarray(tr.get(axis, role), float) - pred[ch]
             s, n = acc.get(ch, (0.0, 0))
             acc[ch] = (s + float(r @ r), n + r.size)
             if k == 0:

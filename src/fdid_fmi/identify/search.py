@@ -52,7 +52,10 @@ class _Counter:
             self.bar.update(1)
             if self.nfev > self.bar.total:
                 self.bar.total = self.nfev
-        v = float(self.fun(x))
+        # a finite-difference step of L-BFGS-B can reach a pole set whose Tustin denominator is
+        # 0 at q = 1: its division warnings reached the user's terminal, the value is refused here
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            v = float(self.fun(x))
         if not np.isfinite(v):
             return np.inf      # a NaN objective would stall the optimisers; see run_search
         self.n_finite += 1
