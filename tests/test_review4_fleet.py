@@ -153,8 +153,8 @@ def test_entries_differing_only_in_case_are_refused(second):
 def test_tool_channel_is_compared_with_the_model_tool_output():
     """A model with a tool-side output (the default structure when the traces record the tool)
     predicts the tool channel itself: the fleet compared that channel with the motor-side position
-    instead (measured on plant2's backlash axis: 7.4 µm, the lost motion, for a model predicting
-    the tool side to 3.1 µm)."""
+    instead (measured on plant2's backlash axis: 7.93 µm, the lost motion, for a model predicting
+    the tool side to 3.14 µm)."""
     import warnings
 
     from fdid_fmi.diagnose.residuals import residuals
