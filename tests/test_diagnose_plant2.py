@@ -17,6 +17,7 @@ from fdid_fmi.diagnose.limits import (LOST_MOTION_NOTE_MM, REVERSAL_SUSPECT, Not
                                       lost_motion_carried)
 from fdid_fmi.identify import identify_mimo, identify_siso, mimo_structure
 from plant2 import scenarios as p2
+from plant2_fits import backlash_tool_r1c1
 
 
 def _diagnose(name, seed=0, held_out=True, **kw):
@@ -138,13 +139,10 @@ def test_the_friction_to_the_tool_side_carries_the_lost_motion():
 def test_a_model_that_carries_the_backlash_says_so():
     """The default structure on the backlash axis with its tool channel carries the lost motion
     (above): the diagnosis reports it as a note with its size, not silence (measured: 16.4 µm)."""
-    train, vals, truth = p2.scenario("backlash_tool")
-    va = next(v for v in vals if v.meta["name"] == "reversals")
-    st = mimo_structure(("x",), ("error", "tool_position"), n_real=1, n_complex=1, same_sample="hold")
+    train, va, truth, m = backlash_tool_r1c1()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        m = identify_mimo(train[0], st, seed=0, maxiter=20)
-        d = diagnose(m, train[0], va, detectors=["friction"], maxiter=20)
+        d = diagnose(m, train, va, detectors=["friction"], maxiter=20)
     carried = [n for n in d.notes if n.kind == NoteKind.CARRIED]
     assert [(n.axis, n.effect) for n in carried] == [("x", "backlash")]
     assert carried[0].statistic == pytest.approx(_true_lost_motion(truth), rel=0.1)

@@ -5,7 +5,6 @@ the fix)."""
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from fdid_fmi.errors import InputError
@@ -155,18 +154,10 @@ def test_tool_channel_is_compared_with_the_model_tool_output():
     predicts the tool channel itself: the fleet compared that channel with the motor-side position
     instead (measured on plant2's backlash axis: 7.93 µm, the lost motion, for a model predicting
     the tool side to 3.14 µm)."""
-    import warnings
-
     from fdid_fmi.diagnose.residuals import residuals
     from fdid_fmi.fleet.work import channel_errors
-    from fdid_fmi.identify import identify_mimo, mimo_structure
-    from plant2 import scenarios as p2
-    train, vals, _ = p2.scenario("backlash_tool")
-    va = next(v for v in vals if v.meta["name"] == "reversals")
-    st = mimo_structure(("x",), ("error", "tool_position"), n_real=1, n_complex=1, same_sample="hold")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        m = identify_mimo(train[0], st, seed=0, maxiter=20)
+    from plant2_fits import backlash_tool_r1c1
+    _, va, _, m = backlash_tool_r1c1()
     errors, _ = channel_errors(m, [va], "x")
     table = residuals(m, va).table()                  # measured minus predicted, per output
     assert errors["tool"] == pytest.approx(table["x.tool"]["rms_um"], rel=1e-9)
