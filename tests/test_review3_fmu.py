@@ -93,8 +93,7 @@ class Slave:
             self.f.instantiate(callbacks=cb, loggingOn=True)
         return self
 
-    def start(self, inputs=None):
-        self.instantiate()
+    def _initialize(self, inputs):
         if self.v == 3:
             self.f.enterInitializationMode(startTime=0.0)
         else:
@@ -105,22 +104,25 @@ class Slave:
         self.f.exitInitializationMode()
         return self
 
+    def start(self, inputs=None):
+        self.instantiate()
+        return self._initialize(inputs)
+
     def reset_and_start(self, inputs=None):
         self.f.reset()
-        if self.v == 3:
-            self.f.enterInitializationMode(startTime=0.0)
-        else:
-            self.f.setupExperiment(startTime=0.0)
-            self.f.enterInitializationMode()
-        for k, x in (inputs or {}).items():
-            self.set([self.vr[k]], [x])
-        self.f.exitInitializationMode()
+        self._initialize(inputs)
 
     def errors(self):
         return [m for s, c, m in self.logs if s == 3]
 
     def free(self):
         self.f.freeInstance()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.free()
 
 
 def _run(s, cmd, k0=0, outs=("x_x", "x_e", "x_v", "x_dnf")):
@@ -141,8 +143,7 @@ def test_a_step_that_makes_the_state_non_finite_is_an_error(fmus, v):
     fix every doStep
     returned OK with inf/NaN in the state, GetFMUstate gave a state that SetFMUstate refused,
     and only a later get of an output reported it."""
-    s = Slave(fmus, v).start()
-    try:
+    with Slave(fmus, v).start() as s:
         first = s.get_state()
         failed_at = None
         for k in range(4):
@@ -161,8 +162,6 @@ def test_a_step_that_makes_the_state_non_finite_is_an_error(fmus, v):
         s.set([s.vr["x_x_cmd"]], [0.5])
         s.f.doStep(0.0, TS)
         assert np.all(np.isfinite(s.get([s.vr["x_x"], s.vr["x_v"]])))
-    finally:
-        s.free()
 
 
 def _lone_hash(msg):
@@ -175,16 +174,13 @@ def test_hash_in_a_logged_message_is_escaped(fmus, v):
     """FMI 2.0.4 section 2.1.5 (logger) / FMI 3.0 section 2.3.1 (logMessage): '#' marks a variable
     reference (#r1# / #1#) that the master may expand; a literal '#' must be written '##'. The
     FMU echoes master strings: an unknown log category, a wrong GUID / instantiation token."""
-    s = Slave(fmus, v).start()
-    try:
+    with Slave(fmus, v).start() as s:
         fn = getattr(s.f.dll, f"fmi{v}SetDebugLogging")
         fn.restype = ctypes.c_int
         fn.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_size_t, ctypes.POINTER(ctypes.c_char_p)]
         assert fn(s.f.component, 1, 1, (ctypes.c_char_p * 1)(b"my#r1#category")) == 1   # warning
         msg = [m for st, c, m in s.logs if "unknown log category" in m][-1]
         assert "my##r1##category" in msg and not _lone_hash(msg), msg
-    finally:
-        s.free()
     w = Slave(fmus, v)
     w.f.guid = "{#1#}"                           # a wrong token holding '#'
     with pytest.raises(Exception):
@@ -204,8 +200,7 @@ def test_a_state_with_inconsistent_step_flags_is_refused(fmus, v):
     no doStep taken (or an initial state to recompute after one) is no state the FMU can be in:
     before the fix it was accepted, and the next output evaluation re-initialized the model and
     set the FMU time back (lastSuccessfulTime 1 Ts after doStep(5 Ts, Ts))."""
-    s = Slave(fmus, v).start()
-    try:
+    with Slave(fmus, v).start() as s:
         before = bytes(s.serialize(s.get_state()))      # after ExitInitializationMode, no step
         assert _flags(before) == (0, 0, 0)
         s.f.doStep(0.0, TS)
@@ -228,8 +223,6 @@ def test_a_state_with_inconsistent_step_flags_is_refused(fmus, v):
             with pytest.raises(FMICallException):
                 s.deserialize(bytes(b))
             assert "corrupt state" in s.errors()[-1]
-    finally:
-        s.free()
 
 
 @pytest.mark.parametrize("v", [2, 3])
@@ -238,9 +231,7 @@ def test_a_state_of_another_fmu_is_refused(fmus, other_fmus, v):
     this FMU copied. Two axis FMUs of one structure (a master keeping their states in one array) have
     states of the same size and kind; before the fix B took A's state with OK and simulated on
     with A's parameters and A's time. The serialized form was already checked (GUID)."""
-    a = Slave(fmus, v, "a").start({"x_x_cmd": 0.3})
-    b = Slave(other_fmus, v, "b").start()
-    try:
+    with Slave(fmus, v, "a").start({"x_x_cmd": 0.3}) as a, Slave(other_fmus, v, "b").start() as b:
         a.f.doStep(0.0, TS)
         sa, sb = a.get_state(), b.get_state()
         with pytest.raises(FMICallException):
@@ -257,9 +248,6 @@ def test_a_state_of_another_fmu_is_refused(fmus, other_fmus, v):
         blob = bytes(a.serialize(sa))
         with pytest.raises(FMICallException):           # serialized: refused by the GUID
             b.deserialize(blob)
-    finally:
-        a.free()
-        b.free()
 
 
 # ----------------------------------------------------------------------------- checked, correct
@@ -267,9 +255,7 @@ def test_a_state_of_another_fmu_is_refused(fmus, other_fmus, v):
 def test_reset_then_rerun_equals_a_fresh_instance_and_states_round_trip(fmus, v):
     cmd = np.cumsum(np.random.default_rng(3).normal(0.0, 0.01, 120))
     ins = {"x_v0": 2.0, "x_friction_level": 0.7, "x_x_cmd": cmd[0]}
-    fresh = Slave(fmus, v, "fresh").start(ins)
-    s = Slave(fmus, v, "used").start(ins)
-    try:
+    with Slave(fmus, v, "fresh").start(ins) as fresh, Slave(fmus, v, "used").start(ins) as s:
         ref = _run(fresh, cmd)
         _run(s, cmd[:50] * 3.0)                          # a different first run
         s.reset_and_start(ins)
@@ -286,15 +272,11 @@ def test_reset_then_rerun_equals_a_fresh_instance_and_states_round_trip(fmus, v)
                     blob[:GUID] + bytes(len(blob) - GUID)):               # foreign GUID, zeroed body
             with pytest.raises(FMICallException):
                 s.deserialize(bad)
-    finally:
-        fresh.free()
-        s.free()
 
 
 @pytest.mark.parametrize("v", [2, 3])
 def test_value_references_types_and_null_arrays(fmus, v):
-    s = Slave(fmus, v).start()
-    try:
+    with Slave(fmus, v).start() as s:
         state = s.get_state()
         for call in (lambda: s.get([len(s.md.modelVariables) + 5]),            # out of range
                      lambda: s.set([s.vr["x_x"]], [1.0]),                       # an output
@@ -324,8 +306,6 @@ def test_value_references_types_and_null_arrays(fmus, v):
                 assert fn(s.f.component, None, 0, None) == 0
                 assert fn(s.f.component, None, 1, None) == 3
             s.set_state(state)
-    finally:
-        s.free()
 
 
 def test_fmi3_null_logger_and_null_resource_path(fmus):
