@@ -359,8 +359,7 @@ def run_entry(item: WorkItem) -> EntryResult:
         # the validation's verdict decides (before: an entry was "ok" whatever it found); not
         # kept for a rerun: the FMU's binary and its run depend on the worker's compiler and fmpy
         failure = validation_failure(res.validation)
-        res.status, res.error, res.deterministic = ("validation_failed", failure, False) if failure else \
-            ("ok", None, False)
+        res.status, res.error, res.deterministic = ("validation_failed" if failure else "ok"), failure, False
         res.spec, res.trace_digests = spec.to_dict(), digests
         tm.total_s = (time.perf_counter() - t_start if old is None else
                       tm.read_s + tm.identify_s + tm.export_s + tm.validate_s + tm.diagnose_s + tm.compare_s)
