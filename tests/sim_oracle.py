@@ -98,9 +98,12 @@ def _sat(x):
     return min(1.0, max(-1.0, x))
 
 
-def feature_value(params, v_prev, x_cmd, x_prev):
-    """Value of a ``feature`` input (see DriveModel) from the previous step's axis state."""
+def feature_value(params, v_prev, x_cmd, x_prev, h=None):
+    """Value of a ``feature`` input (see DriveModel) from the previous step's axis state (``h``:
+    the play operator's state)."""
     f = params["function"]
+    if f == "play":
+        return _sat((x_prev - h) / params["width_mm"])
     if f in ("sin_position", "cos_position"):
         x = x_cmd if params.get("source", "command") == "command" else x_prev
         arg = 2.0 * np.pi * x / params["period_mm"]
@@ -240,12 +243,16 @@ def _run(plan, cmds, exts, t, v0):
         u0[i] = plan.level[j] * _sat(v0[ins[i].axis] / plan.vt[j])
     for i in plan.ext:
         u0[i] = exts[ins[i].name][0]
+    play = [i for i in plan.feat if ins[i].params["function"] == "play"]
     for i in plan.feat:
         a = ins[i].axis
-        u0[i] = feature_value(ins[i].params, v0[a], cmds[a][0], cmds[a][0])
+        u0[i] = float(np.sign(v0[a])) if i in play else feature_value(ins[i].params, v0[a], cmds[a][0],
+                                                                       cmds[a][0])
     xi = _mv(plan.S, u0) - _mv(plan.S2, du)
     y0 = _mv(C, xi) + _mv(D, u0) + yoff
     x_prev = {a: y0[plan.pos[a]] - v0[a] * Ts for a in plan.axes}
+    # the play has slid through on the start ramp: h = x - b sign(v0)
+    hold = {i: x_prev[ins[i].axis] - u0[i] * ins[i].params["width_mm"] for i in play}
     v_prev = dict(v0)
 
     Y = np.empty((N, ny))
@@ -265,7 +272,7 @@ def _run(plan, cmds, exts, t, v0):
             u[i] = exts[ins[i].name][k]
         for i in plan.feat:
             a = ins[i].axis
-            u[i] = feature_value(ins[i].params, v_prev[a], cmds[a][k], x_prev[a])
+            u[i] = feature_value(ins[i].params, v_prev[a], cmds[a][k], x_prev[a], hold.get(i))
         for i in plan.fric:
             u[i] = 0.0
         y = _mv(CD, np.concatenate([xi, u])) + yoff
@@ -281,6 +288,9 @@ def _run(plan, cmds, exts, t, v0):
             v_prev[a] = y[plan.vel[a]] if plan.vel[a] is not None else (y[plan.pos[a]] - x_prev[a]) / Ts
             x_prev[a] = y[plan.pos[a]]
             V[a][k] = v_prev[a]
+        for i in play:
+            b = ins[i].params["width_mm"]
+            hold[i] = min(max(hold[i], x_prev[ins[i].axis] - b), x_prev[ins[i].axis] + b)
         Y[k] = y
         U[k] = u
         xi = _mv(AB, np.concatenate([xi, u]))

@@ -43,15 +43,16 @@ def test_run_refuses_commands_of_another_shape(coupled, shape):
 
 
 def test_run_refuses_externals_and_start_velocities_of_another_shape():
-    cm = kernel.CompiledModel(fs.feature_model())          # 8 inputs, one of them external
+    cm = kernel.CompiledModel(fs.feature_model())          # m inputs, one of them external
+    m = len(cm.model.inputs)
     c = np.zeros((300, 1))
-    for bad in (np.zeros(300), np.zeros((300, 1)), np.zeros((30, 8))):
+    for bad in (np.zeros(300), np.zeros((300, 1)), np.zeros((30, m))):
         with pytest.raises(InputError, match="exts"):
             kernel.run(cm, c, bad, np.zeros(1))
     with pytest.raises(InputError, match="v0"):
-        kernel.run(cm, c, np.zeros((300, 8)), np.zeros(2))
+        kernel.run(cm, c, np.zeros((300, m)), np.zeros(2))
     with pytest.raises(InputError, match="cmds.*real"):
-        kernel.run(cm, c + 1j, np.zeros((300, 8)), np.zeros(1))
+        kernel.run(cm, c + 1j, np.zeros((300, m)), np.zeros(1))
 
 
 def test_run_takes_a_vector_for_one_axis_and_any_memory_order(siso, coupled):

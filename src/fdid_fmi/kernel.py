@@ -32,7 +32,7 @@ _I = ct.POINTER(ct.c_int)
 class _Input(ct.Structure):
     _fields_ = [("kind", ct.c_int), ("axis", ct.c_int), ("function", ct.c_int),
                 ("source_position", ct.c_int), ("v_tilde", ct.c_double), ("v_s", ct.c_double),
-                ("period_mm", ct.c_double)]
+                ("period_mm", ct.c_double), ("width_mm", ct.c_double)]
 
 
 class _Rows(ct.Structure):
@@ -57,7 +57,7 @@ class _Flags(ct.Structure):
 
 
 _VIEWS = ("xi", "x_prev", "v_prev", "cmd", "ext", "uref", "yoff", "u", "y", "vel",
-          "level", "vtilde", "on", "v0", "work_n", "work_m")
+          "level", "vtilde", "on", "v0", "hold", "work_n", "work_m")
 
 
 class _State(ct.Structure):
@@ -144,7 +144,8 @@ class CompiledModel:
                             int(feat and p.params.get("source", "command") == "position"),
                             float(p.params.get("v_tilde", 1.0)) if feat else 1.0,
                             float(p.params.get("v_s", 1.0)) if feat else 1.0,
-                            float(p.params.get("period_mm", 1.0)) if feat else 1.0)
+                            float(p.params.get("period_mm", 1.0)) if feat else 1.0,
+                            float(p.params.get("width_mm", 1.0)) if feat else 1.0)
         ints = [_iarr(v) for v in (lay.fric_inputs, lay.fric_vel_output, lay.fric_vel_diff, lay.axis_cmd,
                                    lay.axis_pos, lay.axis_err, lay.axis_vel, lay.axis_tool)]
         dbls = [np.ascontiguousarray(v, dtype=float) for v in (lay.axis_level0, lay.axis_vtilde0)]

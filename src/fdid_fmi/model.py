@@ -13,7 +13,11 @@ with inputs ``u`` and outputs ``y`` described by :class:`Port` lists. Input kind
               around the model's own velocity v of the axis and solved exactly at each step.
 ``feature``   a nonlinear function of the previous step's velocity or of the position
               (``params["function"]``: ``sat``, ``abs_sat``, ``stribeck``, ``sin_position``,
-              ``cos_position``); used by effects that diagnosis adds.
+              ``cos_position``, ``play``); used by effects that diagnosis adds and by the
+              structure choice. ``play`` is the play (backlash) operator of the model's own
+              position x with half-width b = ``width_mm``: h_k = min(max(h_k-1, x_k - b),
+              x_k + b), value (x_k - h_k) / b in [-1, 1], a friction force that builds up over
+              the travel 2b after each reversal (presliding) instead of over a velocity band.
 
 Output kinds: ``position`` (required per axis), ``error`` (x_r - x), ``velocity``,
 ``tool_position``, ``acceleration``, ``other``. The simulation semantics that use these
@@ -38,7 +42,7 @@ FORMAT = "fdid-fmi-model"
 FORMAT_VERSION = 2          # 2: causal models (no same-sample response to commands)
 INPUT_KINDS = ("command", "external", "friction", "feature")
 OUTPUT_KINDS = ("position", "error", "velocity", "tool_position", "acceleration", "other")
-FEATURE_FUNCTIONS = ("sat", "abs_sat", "stribeck", "sin_position", "cos_position")
+FEATURE_FUNCTIONS = ("sat", "abs_sat", "stribeck", "sin_position", "cos_position", "play")
 
 
 def delayed_input(kind, params):
@@ -65,7 +69,8 @@ class Port:
     axis : str or None
     params : dict   friction: ``v_tilde`` [mm/s], ``level`` [-];
                     feature: ``function``, ``v_tilde``, ``v_s`` [mm/s], ``period_mm``,
-                    ``source`` (``command`` or ``position``)
+                    ``width_mm``, ``source`` (``command`` or ``position``; ``play``:
+                    ``position``)
     description : str
     """
 
@@ -603,7 +608,7 @@ def check_simulation_numbers(model):
 
     Ts in TS_RANGE; friction ``v_tilde`` > 0 and ``level`` finite >= 0; feature parameters
     (``v_tilde`` for sat/abs_sat/stribeck, ``v_s`` for stribeck, ``period_mm`` for sin/cos,
-    ``source`` command/position); matrix entries and the steady-state maps finite and at
+    ``source`` command/position, ``width_mm`` and source position for play); matrix entries and the steady-state maps finite and at
     most MAX_ABS in magnitude. Raises InputError naming the parameter.
     """
     lo, hi = TS_RANGE
@@ -633,6 +638,12 @@ def check_simulation_numbers(model):
                 if prt.params.get("source", "command") not in ("command", "position"):
                     raise InputError("feature source must be 'command' or 'position', got "
                                      f"{_short(prt.params.get('source'))}", column=f"{prt.name}.source")
+            if fn == "play":
+                _positive(prt, "width_mm", "mm")
+                if prt.params.get("source") != "position":
+                    raise InputError("the play feature acts on the model's own position: source "
+                                     f"must be 'position', got {_short(prt.params.get('source'))}",
+                                     column=f"{prt.name}.source")
             if prt.axis is None:
                 raise InputError("a feature input needs an axis", column=prt.name)
     if model.A.shape[0]:

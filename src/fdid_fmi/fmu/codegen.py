@@ -111,16 +111,17 @@ def model_data_c(layout, guid, model_identifier):
     for p in m.inputs:
         kind = KINDS.index(p.kind)
         ax = aidx.get(p.axis, -1)
-        fn, srcpos, vt, vs, per = 0, 0, 1.0, 1.0, 1.0
+        fn, srcpos, vt, vs, per, width = 0, 0, 1.0, 1.0, 1.0, 1.0
         if p.kind == "feature":
             fn = FEATURES.index(p.params["function"])
             srcpos = 1 if p.params.get("source", "command") == "position" else 0
             vt = float(p.params.get("v_tilde", 1.0))
             vs = float(p.params.get("v_s", 1.0))
             per = float(p.params.get("period_mm", 1.0))
+            width = float(p.params.get("width_mm", 1.0))
             if ax < 0:
                 raise ValueError(f"feature input {p.name} has no axis")
-        rows.append(f"    {{{kind}, {ax}, {fn}, {srcpos}, {_num(vt)}, {_num(vs)}, {_num(per)}}}")
+        rows.append(f"    {{{kind}, {ax}, {fn}, {srcpos}, {_num(vt)}, {_num(vs)}, {_num(per)}, {_num(width)}}}")
     parts.append("static const FdidInput data_inputs[%d] = {\n%s\n};\n" % (len(rows), ",\n".join(rows)))
     parts.append(_iarray("data_fric_input", layout.fric_inputs))
     parts.append(_iarray("data_fric_vel_output", layout.fric_vel_output))

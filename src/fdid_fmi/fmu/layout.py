@@ -31,7 +31,7 @@ import numpy as np
 from scipy import sparse
 
 from ..errors import InputError
-from ..model import DriveModel, QuasiStaticModel, delayed_input
+from ..model import FEATURE_FUNCTIONS, DriveModel, QuasiStaticModel, delayed_input
 
 # FMI unit name and base-unit exponents/factor (to SI) for the canonical units of fdid_fmi.units
 FMI_UNITS = {
@@ -51,7 +51,7 @@ VELOCITY_UNIT = {"mm": "mm_s", "deg": "deg_s"}
 
 # roles (must match the enum in fmu_templates/fdid_model.h)
 ROLES = ("cmd", "ext", "pos", "err", "vel", "tool", "y", "u", "level", "v_tilde", "on", "v0")
-FEATURES = ("sat", "abs_sat", "stribeck", "sin_position", "cos_position")
+FEATURES = FEATURE_FUNCTIONS      # the enum FDID_F_* in fmu_templates/fdid_model.h, in this order
 KINDS = ("command", "external", "friction", "feature")
 
 

@@ -31,8 +31,9 @@ static double fdid_abs(double x) { return x < 0.0 ? -x : x; }
 /* ------------------------------------------------------------------ layout */
 size_t fdid_buffer_size(const FdidModel *M) {
     size_t n = (size_t)M->n, m = (size_t)M->m, p = (size_t)M->p, a = (size_t)M->n_axes;
-    /* xi, u, x_prev, v_prev, cmd, ext, uref, yoff, y, vel, level, vtilde, on, v0, work_n, work_m */
-    return n + a + a + a + m + m + p + m + p + a + a + a + a + a + n + m;
+    /* xi, u, x_prev, v_prev, cmd, ext, uref, yoff, y, vel, level, vtilde, on, v0, hold, work_n,
+     * work_m */
+    return n + m + a + a + a + m + m + p + p + a + a + a + a + a + m + n + m;
 }
 
 void fdid_state_bind(FdidState *S, const FdidModel *M, double *buf) {
@@ -55,6 +56,7 @@ void fdid_state_bind(FdidState *S, const FdidModel *M, double *buf) {
     S->vtilde = q; q += a;
     S->on = q; q += a;
     S->v0 = q; q += a;
+    S->hold = q; q += m;
     S->work_n = q; q += n;
     S->work_m = q;
 }
@@ -121,10 +123,17 @@ static double fric_vtilde(const FdidState *S, int j) {
     return S->vtilde[S->M->inputs[S->M->fric_input[j]].axis];
 }
 
-/* simulate.feature_value */
-static double feature_value(const FdidInput *in, double v_prev, double x_cmd, double x_prev) {
+static int is_play(const FdidInput *in) {
+    return in->kind == FDID_IN_FEATURE && in->function == FDID_F_PLAY;
+}
+
+/* simulate.feature_value; h: the play operator's state of this input */
+static double feature_value(const FdidInput *in, double v_prev, double x_cmd, double x_prev,
+                            double h) {
     double s;
     switch (in->function) {
+    case FDID_F_PLAY:
+        return fdid_sat((x_prev - h) / in->width_mm); /* [-1, 1] also after rounding */
 #if FDID_USE_LIBM
     case FDID_F_SIN_POSITION:
     case FDID_F_COS_POSITION: {
@@ -146,7 +155,6 @@ static double feature_value(const FdidInput *in, double v_prev, double x_cmd, do
     }
 #endif
     (void)x_cmd;
-    (void)x_prev;
     return 0.0; /* unreachable: the exporter sets FDID_USE_LIBM for these functions */
 }
 
@@ -277,8 +285,10 @@ void fdid_initialize(FdidState *S) {
     for (i = 0; i < m; i++) {
         const FdidInput *in = &M->inputs[i];
         if (in->kind == FDID_IN_EXTERNAL) u0[i] = S->ext[i];
+        else if (is_play(in)) /* a steady ramp has slid through the play: +-1, at rest 0 */
+            u0[i] = S->v0[in->axis] > 0.0 ? 1.0 : (S->v0[in->axis] < 0.0 ? -1.0 : 0.0);
         else if (in->kind == FDID_IN_FEATURE)
-            u0[i] = feature_value(in, S->v0[in->axis], S->cmd[in->axis], S->cmd[in->axis]);
+            u0[i] = feature_value(in, S->v0[in->axis], S->cmd[in->axis], S->cmd[in->axis], 0.0);
     }
     /* xi = S u0 - S2 du */
     matvec(M->S, n, m, u0, S->xi);
@@ -292,6 +302,9 @@ void fdid_initialize(FdidState *S) {
         S->x_prev[a] = ((c + dd) + S->yoff[o]) - S->v0[a] * M->Ts;
         S->v_prev[a] = S->v0[a];
     }
+    for (i = 0; i < m; i++)
+        if (is_play(&M->inputs[i]))
+            S->hold[i] = S->x_prev[M->inputs[i].axis] - u0[i] * M->inputs[i].width_mm;
     S->f.steps = 0;
     S->f.init_dirty = 0;
     S->f.out_dirty = 1;
@@ -311,7 +324,8 @@ FDID_INLINE void compute_outputs(FdidState *S) {
         const FdidInput *in = &M->inputs[i];
         if (in->kind == FDID_IN_EXTERNAL) u[i] = S->ext[i];
         else if (in->kind == FDID_IN_FEATURE)
-            u[i] = feature_value(in, S->v_prev[in->axis], S->cmd[in->axis], S->x_prev[in->axis]);
+            u[i] = feature_value(in, S->v_prev[in->axis], S->cmd[in->axis], S->x_prev[in->axis],
+                                 S->hold[i]);
         else if (in->kind == FDID_IN_FRICTION) u[i] = 0.0;
     }
     /* y = [C D] [xi; u] + yoff (the friction inputs are still 0 here) */
@@ -351,6 +365,16 @@ FDID_INLINE void update_state(FdidState *S) {
     for (a = 0; a < M->n_axes; a++) {
         S->v_prev[a] = S->vel[a];
         S->x_prev[a] = S->y[M->axis_pos_output[a]];
+    }
+    /* play operator: h <- min(max(h, x - b), x + b) with the new position x */
+    for (i = 0; i < M->m; i++) {
+        const FdidInput *in = &M->inputs[i];
+        if (is_play(in)) {
+            double x = S->x_prev[in->axis], h = S->hold[i];
+            if (h < x - in->width_mm) h = x - in->width_mm;
+            if (h > x + in->width_mm) h = x + in->width_mm;
+            S->hold[i] = h;
+        }
     }
     /* xi <- [A B] [xi; u] (into the scratch vector first: every row needs the old xi) */
     for (i = 0; i < n; i++) S->work_n[i] = fdid_row_dot(&M->AB_rows, i, S->xi);

@@ -11,7 +11,8 @@
  *   start       steady state of a ramp at the axis start velocity v0:
  *               xi0 = S u0 - S2 du, du = v0 Ts on the command inputs, friction inputs at
  *               L sat(v0 / v_tilde); x[-1] = x[0] - v0 Ts; v[-1] = v0;
- *   step k      feature inputs from the previous step's velocity / position; friction inputs
+ *   step k      feature inputs from the previous step's velocity / position (the play feature
+ *               from its operator state h, updated with each new position); friction inputs
  *               d = L sat(v / v_tilde) solved exactly with stiction (v = alpha + beta d is
  *               affine in d: branches stick (v = 0, |d| <= L) / linear / +1 / -1 per friction
  *               input, in that order, the first consistent one wins); with z = [xi; u],
@@ -36,7 +37,7 @@
 enum { FDID_IN_COMMAND = 0, FDID_IN_EXTERNAL = 1, FDID_IN_FRICTION = 2, FDID_IN_FEATURE = 3 };
 /* feature functions (model.FEATURE_FUNCTIONS) */
 enum { FDID_F_SAT = 0, FDID_F_ABS_SAT = 1, FDID_F_STRIBECK = 2, FDID_F_SIN_POSITION = 3,
-       FDID_F_COS_POSITION = 4 };
+       FDID_F_COS_POSITION = 4, FDID_F_PLAY = 5 };
 /* FMI variable types */
 enum { FDID_T_REAL = 0, FDID_T_BOOLEAN = 1 };
 /* roles of FMI variables; `index` is an axis index or a model port index as noted */
@@ -63,6 +64,7 @@ typedef struct {
     double v_tilde;       /* feature sat/abs_sat/stribeck: transition velocity, mm/s */
     double v_s;           /* feature stribeck: Stribeck velocity, mm/s */
     double period_mm;     /* feature sin/cos: spatial period, mm */
+    double width_mm;      /* feature play: half-width b of the play operator, mm */
 } FdidInput;
 
 typedef struct {
@@ -121,6 +123,7 @@ typedef struct {
     /* views into buf */
     double *xi, *x_prev, *v_prev, *cmd, *ext, *uref, *yoff, *u, *y, *vel;
     double *level, *vtilde, *on, *v0;
+    double *hold;             /* per model input: the play operator's output h (play features) */
     double *work_n, *work_m;  /* scratch */
 } FdidState;
 
