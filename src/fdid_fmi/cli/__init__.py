@@ -33,7 +33,14 @@ BUG_REPORT = ("this is a bug in fdid-fmi; please report it to the fdid-fmi maint
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse with a one-line error (no usage block): ``fdid CMD: error: ... (see --help)``."""
+    """argparse with a one-line error (no usage block): ``fdid CMD: error: ... (see --help)``,
+    and no abbreviation of a long option (``--meth`` for ``--method`` would silently change
+    meaning once another ``--meth...`` option is added). ``add_subparsers`` makes every command's
+    parser (and ``fdid fleet``'s nested ones) of this class, so the rule holds for all of them."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs["allow_abbrev"] = False
+        super().__init__(*args, **kwargs)
 
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
