@@ -355,7 +355,10 @@ def summary(model, trace=None):
                     lines += StructureChoice.from_dict(rec.structure_choice).table()
                 cp = ", ".join(f"{w:.3f} Hz / zeta {z:.4f}" for w, z in rec.complex_hz_zeta)
                 rp = ", ".join(f"{p:.3f} Hz" for p in rec.real_hz)
-                lines.append(f"poles: real [{rp}]  complex [{cp}]  v_tilde {rec.v_tilde_mm_s} mm/s")
+                lines.append(f"poles: real [{rp}]  complex [{cp}]")
+                if rec.v_tilde_mm_s:   # 3 decimals; below 0.1 mm/s 3 significant digits (never 0.000)
+                    lines.append("v_tilde [mm/s]: " + ", ".join(
+                        f"{a} {v:.3f}" if abs(v) >= 0.1 else f"{a} {v:.3g}" for a, v in rec.v_tilde_mm_s.items()))
             elif "pole_constraints" in b:
                 pc = b["pole_constraints"]
                 lines.append(f"poles: p {pc['p_hz']:.3f} Hz, wn {pc['wn_hz']:.3f} Hz, zeta {pc['zeta']:.3f}"
