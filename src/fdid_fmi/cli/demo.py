@@ -9,13 +9,18 @@ identified model (``plan.html``: predicted contour error per block).
 """
 from __future__ import annotations
 
+import contextlib
 import json
+import os
+import shutil
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
 from ..metrics import contour_error, rms_max_um
+from ..errors import InputError
 from ..model import DriveModel, jsonable
 from ..outputs import atomic_write
 from .argtypes import int_in
@@ -56,7 +61,6 @@ def _default_emps_folder():
                    Path("..") / "shared" / "data" / "emps"):
         if folder and folder.is_dir():
             return folder
-    from ..errors import InputError
     raise InputError("no EMPS data folder ../shared/data/emps here; give the folder with --data DIR",
                      source="--emps")
 
@@ -70,14 +74,61 @@ def _emps_case(folder):
     return "EMPS drive benchmark (real data)", {"x": train}, val, {"integral_action": False}
 
 
+@contextlib.contextmanager
+def staged_output(out):
+    """Write a run's files into a fresh staging folder beside ``out`` and move them into ``out``
+    only when the block ends without an exception: a failed or interrupted run leaves no empty or
+    half-filled output folder behind.
+
+    On failure the staging folder (created here) is removed, and so are ``out`` and those of its
+    parent folders that this call created, if they are still empty; a folder that existed before
+    (or that now holds anyone else's files) is never removed, and its files stay as they were.
+    On success each file replaces its namesake in ``out`` with ``os.replace`` (atomic per file).
+
+    Yields
+    ------
+    Path of the staging folder to write into.
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError("the demo's output folder exists and is not a folder", source=str(out))
+    made = [d for d in (out, *out.parents) if not d.exists()]     # deepest first
+    parent = out.parent if str(out.parent) else Path(".")
+    stage = None
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        stage = Path(tempfile.mkdtemp(prefix=f".{out.name[:100]}.", suffix=".part", dir=parent))
+        yield stage
+        out.mkdir(exist_ok=True)
+        for f in sorted(stage.iterdir()):
+            os.replace(f, out / f.name)
+        stage.rmdir()
+    except BaseException:
+        if stage is not None:
+            shutil.rmtree(stage, ignore_errors=True)
+        for d in made:
+            try:
+                d.rmdir()           # only an empty folder: never anyone's files
+            except FileNotFoundError:
+                continue            # not made (yet): e.g. out itself, made only on success
+            except OSError:
+                break
+        raise
+
+
 def run(args):
+    out = Path(args.out) if args.out else Path("out/demo") / ("emps" if args.emps else "virtual")
+    with staged_output(out) as work:
+        return _run(args, out, work)
+
+
+def _run(args, out, work):
+    """The demo; files are written into ``work`` (see :func:`staged_output`), named as ``out``."""
     from .. import identify as idf
     from ..fmu import export_fmu, validate_fmu
     from ..report import Report, add_model_section, decimate
     from ..simulate import simulate
 
-    out = Path(args.out) if args.out else Path("out/demo") / ("emps" if args.emps else "virtual")
-    out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     if args.emps:
         data = Path(args.data) if args.data else _default_emps_folder()
@@ -101,22 +152,23 @@ def run(args):
         baselines["full-ls"].append(idf.identify_full_ls(tr, ax))
         baselines["quasi-static"].append(idf.identify_quasi_static(tr, [ax]))
     model = models[0] if len(models) == 1 else DriveModel.combine(models, method="pole-search")
-    model.save(out / "model.json")
+    model.save(work / "model.json")
     full_ls = (baselines["full-ls"][0] if len(models) == 1
                else DriveModel.combine(baselines["full-ls"], method="full-ls"))
     qs = baselines["quasi-static"]
 
     # ---- FMU + validation
-    fmu = export_fmu(model, out / "drive.fmu")
-    print(f"  FMU: {fmu} ({fmu.stat().st_size / 1024:.1f} KiB)")
+    fmu = export_fmu(model, work / "drive.fmu")
+    print(f"  FMU: {out / fmu.name} ({fmu.stat().st_size / 1024:.1f} KiB)")
     rep = Report(f"fdid demo: {title}")
     rep.add_text(f"Identified with the SISO pole search with LS projection (thesis ch. 4.3) per axis; "
                  f"exported as an FMI 2.0 co-simulation FMU (native C) and validated through fmpy on "
-                 f"held-out traces. Model: {out / 'model.json'}; FMU: {fmu}.", heading="What was done")
+                 f"held-out traces. Model: {out / 'model.json'}; FMU: {out / fmu.name}.", heading="What was done")
     rows, summary = [], {"title": title, "validation": {}}
     vrs = {}
     for name, tr in val.items():
         vr = validate_fmu(fmu, tr, model=model)
+        vr.fmu = str(out / fmu.name)      # the file as it will be named, not the staging copy
         vrs[name] = vr
         print(f"\n  validation on {name}: fmpy problems {len(vr.problems)}, max |FMU - reference| = "
               f"{vr.max_abs_diff_reference_mm:.3g} mm")
@@ -138,11 +190,11 @@ def run(args):
     add_model_section(rep, model, fmu=fmu, validation={
         "problems": [p for v in vrs.values() for p in v.problems],
         "max_abs_diff_reference_mm": max(v.max_abs_diff_reference_mm for v in vrs.values())})
-    rep.write(out / "report.html")
-    rep.write_json(out / "report.json")
+    rep.write(work / "report.html")
+    rep.write_json(work / "report.json")
     summary["table"] = rows
     # atomic, and strict JSON (a non-finite figure is null, not NaN)
-    atomic_write(out / "summary.json", json.dumps(jsonable(summary), indent=1, allow_nan=False))
+    atomic_write(work / "summary.json", json.dumps(jsonable(summary), indent=1, allow_nan=False))
     print("\n| trace | axis | e RMS [µm] | FMU disc. RMS [µm] | FMU disc. MAX [µm] | Full LS [µm] | quasi-static [µm] |")
     print("|---|---|---:|---:|---:|---:|---:|")
     for r in rows:
@@ -150,7 +202,7 @@ def run(args):
               f"{r['FMU MAX [µm]']:.3f} | {r['Full LS RMS [µm]']:.3f} | {r['quasi-static RMS [µm]']:.3f} |")
     print(f"\nreport: {out / 'report.html'} (+ report.json, summary.json); total {time.perf_counter() - t0:.1f} s")
     if not args.emps:
-        _plan_example(model, out)
+        _plan_example(model, work, shown=out)
     bad = [n for n, v in summary["validation"].items() if v["problems"]]
     return 1 if bad else 0
 
@@ -172,8 +224,9 @@ N90 M30
 """
 
 
-def _plan_example(model, out):
-    """Plan the example program ``examples/pocket_corner.nc`` with the identified model."""
+def _plan_example(model, out, shown=None):
+    """Plan the example program ``examples/pocket_corner.nc`` with the identified model; write
+    ``plan.html`` into ``out`` (printed as in ``shown``, default ``out``)."""
     from ..plan.interpolate import AxisLimits, interpolate
     from ..plan.ncprogram import parse_program
     from ..plan.predict import predict
@@ -187,7 +240,7 @@ def _plan_example(model, out):
     s = pr.summary
     print(f"plan of {nc.name} (limits 100 mm/s, 2000 mm/s^2, 1e5 mm/s^3; tol 20 µm): cycle time "
           f"{s['cycle_time_s']:.3f} s, contour error MAX {s['contour_max_um']:.1f} µm, blocks over the "
-          f"tolerance {s['flagged_blocks']}; {out / 'plan.html'}")
+          f"tolerance {s['flagged_blocks']}; {Path(shown or out) / 'plan.html'}")
 
 
 def _figures(rep, name, tr, model, simulate, decimate):
