@@ -171,6 +171,9 @@ class LSProblem:
             elif ins.kind == "external":
                 e = np.asarray(tr.extra(ins.channel), float)
                 W[i] = np.concatenate([np.full(R, e[0]), e])
+            elif ins.kind == "feature":     # fixed parameters: rows independent of the search
+                src = ext if ins.params.get("source", "command") == "command" else pos
+                W[i] = feature_signal(ins.params, vel[ins.axis], src[ins.axis])
         Z = np.zeros((self.p, N))
         known = np.zeros((self.p, N))
         for j, o in enumerate(s.outputs):
@@ -182,7 +185,7 @@ class LSProblem:
         return Segment(W=W, wref=wref, dw=dw, vel=vel, pos=pos, cmd=ext, Z=Z, known=known, R=R)
 
     def fill_nonlinear_inputs(self, sg, v_tilde, override=None):
-        """Friction and feature rows of the inputs for the given v_tilde (per axis).
+        """Friction rows of the inputs for the given v_tilde (per axis); the rest of ``sg.W``.
 
         ``override`` maps an input index to the values to use after the run-up (the friction
         signal a simulation produced, see ``pole_search.refine_friction``).
@@ -194,9 +197,6 @@ class LSProblem:
                 W[i, sg.R:] = override[i]
             elif ins.kind == "friction":
                 W[i] = np.clip(sg.vel[ins.axis] / v_tilde[ins.axis], -1.0, 1.0)
-            elif ins.kind == "feature":
-                src = sg.cmd if ins.params.get("source", "command") == "command" else sg.pos
-                W[i] = feature_signal(ins.params, sg.vel[ins.axis], src[ins.axis])
         return W
 
     # ------------------------------------------------------------ projection
@@ -320,6 +320,8 @@ def feature_signal(params, vel, pos):
     """Feature input over a record from measured velocity and the position its ``source`` names
     (the simulator's ``feature_value``, applied to measured signals)."""
     f = params["function"]
+    if f == "play":
+        return play_signal(pos, params["width_mm"], np.sign(vel[0]))
     if f in ("sin_position", "cos_position"):
         arg = 2 * np.pi * pos / params["period_mm"]
         return np.sin(arg) if f == "sin_position" else np.cos(arg)
@@ -331,6 +333,22 @@ def feature_signal(params, vel, pos):
     if f == "stribeck":
         return s * np.exp(-(vel / params["v_s"]) ** 2)
     raise InputError(f"unknown feature function '{f}'", column="feature")
+
+
+def play_signal(x, b, direction):
+    """The play feature over a record of positions x (mm), as the simulator applies it (its
+    ``feature_value`` and ``update_state``: the feature reads the previous step's position):
+    w_0 = ``direction`` (the start ramp's: +-1 moving, 0 at rest), h = x_0 - b direction, and
+    for k >= 1: h = min(max(h, x_k-1 - b), x_k-1 + b), w_k = sat((x_k-1 - h) / b)."""
+    x = np.asarray(x, float)
+    w = np.empty_like(x)
+    w[0] = direction
+    h = x[0] - b * direction
+    for k in range(1, x.size):
+        xp = float(x[k - 1])
+        h = min(max(h, xp - b), xp + b)
+        w[k] = (xp - h) / b
+    return np.clip(w, -1.0, 1.0)
 
 
 def _measured_output(tr, o):

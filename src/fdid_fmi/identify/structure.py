@@ -308,7 +308,7 @@ def default_mask(out_kind, in_kind, n, integral_action=True):
 def mimo_structure(axes=("x",), outputs=("error",), n_real=1, n_complex=1, coupled=False,
                    friction=True, integral_action=True, integrators=None, dc_gain=None,
                    locked_complex=(), locked_real=(), velocity="backward", ma_order=1, externals=(),
-                   same_sample=None):
+                   same_sample=None, play_mm=None):
     """Build a MIMO structure (thesis Figure 5-3 / 5-12 / 7-8).
 
     Parameters
@@ -321,6 +321,11 @@ def mimo_structure(axes=("x",), outputs=("error",), n_real=1, n_complex=1, coupl
         predicts the tool-side position from a fitted tool acceleration)
     dc_gain : dict output kind -> (q, value) for the own-axis command input (Eqn 5.15)
     externals : extra trace channels used as inputs (each with its own numerator)
+    play_mm : half-width b (mm) of a play feature per axis (presliding friction: the play
+        operator of the model's own position, ``model.FEATURE_FUNCTIONS``), with the friction's
+        numerator terms and sign; None: none. With ``friction=False`` it is the friction law: a
+        force that builds up over the travel 2b after a reversal, where sat(v / v_tilde) builds
+        it up over a velocity band
     same_sample : ``hold``, ``cubic``, ``quadratic`` or None (chosen from the data), see :class:`Structure`
     """
     integrators = integrators or {}
@@ -340,6 +345,9 @@ def mimo_structure(axes=("x",), outputs=("error",), n_real=1, n_complex=1, coupl
         ins.append(InputSpec("command", ax))
         if friction:
             ins.append(InputSpec("friction", ax))
+        if play_mm is not None:
+            ins.append(InputSpec("feature", ax, params={"function": "play", "width_mm": float(play_mm),
+                                                        "source": "position"}))
     for ch in externals:
         ins.append(InputSpec("external", axes[0], channel=ch, name=port_name(ch)))
     outs = []
@@ -354,8 +362,10 @@ def mimo_structure(axes=("x",), outputs=("error",), n_real=1, n_complex=1, coupl
         for s in ins:
             if not coupled and s.axis != o.axis and s.kind != "external":
                 continue
-            mask[(o.name, s.name)] = default_mask(o.kind, s.kind, n, integral_action)
-            if s.kind == "friction" and s.axis == o.axis and o.kind == "error":
+            # the play feature is a friction force (presliding): the friction's terms and sign
+            kind = "friction" if s.params.get("function") == "play" else s.kind
+            mask[(o.name, s.name)] = default_mask(o.kind, kind, n, integral_action)
+            if kind == "friction" and s.axis == o.axis and o.kind == "error":
                 sign[(o.name, s.name)] = +1
             if s.kind == "command" and s.axis == o.axis and o.kind in dc_gain:
                 dcg[(o.name, s.name)] = tuple(dc_gain[o.kind])
