@@ -55,6 +55,9 @@ from .structure import Bounds, default_bounds, mimo_structure, siso_structure
 
 PARSIMONY = 0.05            # a structure with more parameters must lower the free-run RMS by 5 %
 ZETA_TWO_PAIRS = (0.005, 2.0)  # a structural mode is lightly damped: below the default 0.05
+# half-widths b (mm) of the play (presliding) friction law tried on r2c1: a prior, not fitted to
+# either plant -- presliding displacements of ball screws and guides are micrometres
+PLAY_WIDTHS_MM = (0.001, 0.002, 0.004, 0.008, 0.016)
 
 
 @dataclass(frozen=True)
@@ -63,14 +66,20 @@ class Candidate:
     tool-side output, which that model lacks, the MIMO r1c1), ``rNcM`` a MIMO structure with N
     real poles and M complex pairs and the default numerator masks (``structure.default_mask``);
     ``integral_action=False`` (``-noI``) adds the friction d.c. path (1/P(s)) of a P/PD position
-    loop."""
+    loop; ``play_mm`` replaces the friction law sat(v / v_tilde) by the play of half-width b
+    (``-play<b>um``, see :func:`with_play`)."""
 
     label: str
     n_real: int
     n_complex: int
     integral_action: bool = True
+    play_mm: float | None = None
 
     def structure(self, axis, same_sample, velocity="backward", ma_order=1, outputs=("error",)):
+        if self.play_mm is not None:
+            return mimo_structure((axis,), tuple(outputs), n_real=self.n_real, n_complex=self.n_complex,
+                                  integral_action=self.integral_action, velocity=velocity, ma_order=ma_order,
+                                  same_sample=same_sample, friction=False, play_mm=self.play_mm)
         if self.label.startswith("rigid") and tuple(outputs) == ("error",):
             return siso_structure(axis, integral_action=self.integral_action, velocity=velocity,
                                   ma_order=ma_order, same_sample=same_sample)
@@ -88,6 +97,11 @@ def family(integral_action):
     sfx = "" if integral_action else "-noI"
     return [Candidate("rigid" + sfx, 1, 1, integral_action)] + \
         [Candidate(f"r{r}c{c}{sfx}", r, c, integral_action) for r, c in ((2, 1), (1, 2), (2, 2))]
+
+
+def with_play(cand, b):
+    """``cand`` with the play friction law of half-width ``b`` (mm) in place of sat(v / v_tilde)."""
+    return dataclasses.replace(cand, label=f"{cand.label}-play{b * 1e3:g}um", play_mm=float(b))
 
 
 @dataclass
@@ -202,7 +216,10 @@ def fit_candidate(job):
     t0 = time.perf_counter()
     st = cand.structure(axis, same_sample, opts["velocity"], opts["ma_order"], opts["outputs"])
     bounds = cand.bounds(traces[0].Ts)
-    res = CandidateScore(cand.label, parameter_count(st), same_sample, float("inf"), 0.0)
+    # a play width counts as a parameter: it is picked from PLAY_WIDTHS_MM on the same data, so
+    # the play law must win by the parsimony margin over the same poles with sat(v / v_tilde)
+    res = CandidateScore(cand.label, parameter_count(st) + (cand.play_mm is not None), same_sample,
+                         float("inf"), 0.0)
     model = None
     try:
         with warnings.catch_warnings():   # ill-conditioned LS of the larger structures: scored anyway
@@ -255,15 +272,23 @@ def fit_structures(traces, axis="x", same_sample=None, v_tilde=None, method="de"
         return list(pool.map(fit_candidate, jobs)) if pool is not None else [fit_candidate(j) for j in jobs]
 
     probe = family(True)[1]                          # r2c1
+    largest = family(True)[-1]                       # r2c2
+    rest = [c for c in family(True) + family(False) if c != probe]
     try:
         first = run([probe], forms)
         form = min(first, key=lambda rm: rm[0].free_run_rms_mm)[0].same_sample
-        rest = [c for c in family(True) + family(False) if c != probe]
-        results = [rm for rm in first if rm[0].same_sample == form] + run(rest, [form])
+        # the play law's width on the largest structure (where missing dynamics cannot stand in
+        # for it), fitted beside the sat-law candidates
+        both = run(rest + [with_play(largest, b) for b in PLAY_WIDTHS_MM], [form])
+        sat, widths = both[:len(rest)], both[len(rest):]
+        width = min(widths, key=lambda rm: rm[0].free_run_rms_mm)
+        b = PLAY_WIDTHS_MM[widths.index(width)]
+        results = [rm for rm in first if rm[0].same_sample == form] + sat + [width] + \
+            run([with_play(c, b) for c in family(True) + family(False) if c != largest], [form])
     finally:
         if pool is not None:
             pool.shutdown()
-    return results, [rm for rm in first if rm[0].same_sample != form]
+    return results, [rm for rm in first if rm[0].same_sample != form] + [rm for rm in widths if rm is not width]
 
 
 def identify_auto(traces, axis="x", same_sample=None, v_tilde=None, method="de", seed=0, maxiter=None,
