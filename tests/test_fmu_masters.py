@@ -1,6 +1,7 @@
 """Issue 8 acceptance: identified twins run the way co-simulation masters run them.
 
-Virtual drive without and with feed-forward, and the real EMPS drive: the pole-search model is
+Virtual drive without and with feed-forward, plant2 with the play friction law (the play's
+state runs in the FMU) and the real EMPS drive: the pole-search model is
 exported, then driven (a) by ``fdid validate``, i.e. ``fmpy.simulate_fmu`` with an input table of
 the measured commands and ``step_size`` = the nominal Ts as a decimal, and (b) by the ecos
 co-simulation engine (set inputs, step, read). Either gives ``fdid simulate``'s positions at the
@@ -26,7 +27,7 @@ def _virtual(cfg, ident):
     return ident(train), val
 
 
-@pytest.fixture(scope="module", params=["no feed-forward", "feed-forward", "EMPS"])
+@pytest.fixture(scope="module", params=["no feed-forward", "feed-forward", "play law", "EMPS"])
 def twin(request, tmp_path_factory, shared_data_optional):
     if request.param == "no feed-forward":
         m, val = _virtual(presets.deckel_maho_like(), lambda tr: identify_siso(tr, "x", seed=0, maxiter=30,
@@ -36,6 +37,11 @@ def twin(request, tmp_path_factory, shared_data_optional):
                           lambda tr: identify_mimo(tr, mimo_structure(("x",), ("error",), 2, 1,
                                                                  same_sample="cubic"), seed=0,
                                                    maxiter=30))
+    elif request.param == "play law":      # presliding friction: the play's state runs in the FMU
+        from plant2 import scenarios as p2
+        train, vals, _ = p2.scenario("clean_rigid")
+        st = mimo_structure(("x",), ("error",), 1, 2, friction=False, play_mm=0.004, same_sample="quadratic")
+        m, val = identify_mimo(train, st, seed=0, maxiter=30), vals[0]
     else:
         if shared_data_optional is None:
             pytest.skip("real data folder ../shared/data is absent")
