@@ -12,8 +12,9 @@ effect's; the user should hear so instead of silence:
                     inside its clean range). Record a tool-side position (grid encoder) or
                     acceleration to check it (``fdid align``).
 ``suspected``       the final model's motor-side residual is concentrated after motion starts /
-                    stops far beyond any clean run of either plant (the Stribeck detector's
-                    statistic, see :mod:`.friction`) and neither a Stribeck term nor a backlash
+                    stops far beyond any clean run of either plant (:func:`.friction.concentration`
+                    with the larger of its moving and resting residual as the reference, not the
+                    Stribeck detector's pooled one) and neither a Stribeck term nor a backlash
                     was kept: lost motion (or another reversal effect the friction model lacks) is
                     suspected, and without a tool-side channel it cannot be identified.
 
@@ -37,15 +38,22 @@ effect's; the user should hear so instead of silence:
                     order.
 
 Threshold of ``suspected`` (``REVERSAL_SUSPECT``), calibrated on the second plant and measured on
-the virtual drive (``examples/diagnose_calibrate.py --effects --plant2`` gives the statistics,
-pole-search models of each training trace): plant2's LuGre friction leaves the most reversal
-residual on clean data, 6.55-17.7 over its 9 clean runs, so 1.2 x 17.7 = 21.2. There, its
-Stribeck run gives 13.2 (no note), its 15 µm backlash with the motor encoder only 51.9 (note),
-and its 52 Hz mode 21.8 before and 17.6 after the mode is added (no note; ``benchmarks/
-bench_plant2.py``, 11 scenarios: the note on backlash_motor only).
-On the virtual drive (not used to set it): clean runs reach 2.17 and its Stribeck run 3.27 (no
-note either); its backlash does not reach the motor side (1.3-1.6), which the ``not_observable``
-note covers.
+the virtual drive. The statistic's reference outside the windows is the larger of the residual
+while moving and at rest (:func:`.friction.concentration`): pooled, as the Stribeck detector
+has it, it fell with the share of the trace the axis rests, and on the bundled clean example
+(``virtual_xy_moves.csv``, Y at rest 83 % of the trace with 0.066 µm of residual there) the
+default path's r2c2-noI model gave 42.8 and a false note (21.2 was the gate then, set on the
+thesis path's pooled 6.55-17.7). Calibration: plant2's 9 clean training traces (clean_rigid,
+clean_rigid_2ms, clean_ff, seeds 0-2), each with fdid identify's default model
+(``identify_auto``) and the thesis path's (``identify_siso``): 4.72-15.80 and 5.42-15.95, so
+1.2 x 15.95 = 19.1. There, its 15 µm backlash with the motor encoder only gives 28.3 (default
+path) and 47.1 (thesis path): the note. Measured on the virtual drive (not used to set it): the
+bundled example's default model 10.5 (X) and 14.8 (Y; 2.1 with ``--structure rigid``), five
+clean scenarios (``diagnose.scenarios``: clean seeds 1 and 3, clean_fast, clean_soft, clean_xy)
+1.04-1.41 (default) and 1.22-1.81 (thesis): no note; its backlash does not reach the motor side,
+which the ``not_observable`` note covers. The structure still matters on the example (14.8
+against 2.1: r2c2-noI fits the moving residual to 0.138 µm, the rigid model to 0.371 µm, and
+both leave 0.53 µm in the windows); on plant2 the two paths differ by less than 30 %.
 
 Threshold of ``carried`` (``LOST_MOTION_NOTE_MM``), calibrated on the virtual drive (MIMO r1c1 of
 error and tool position, ad-hoc script): its flexible Y axis, without lost motion, reads 2.7 µm
@@ -61,7 +69,7 @@ from enum import Enum
 
 from .augment import TOOL_KINDS
 
-REVERSAL_SUSPECT = 21.2
+REVERSAL_SUSPECT = 19.1
 LOST_MOTION_NOTE_MM = 0.005
 
 
@@ -122,8 +130,8 @@ def data_limits(axes, tool_axes, concentration, kept, lost_motion=None):
     axes : axes diagnosed
     tool_axes : axes whose training trace has a tool-side channel
     concentration : dict axis -> the final model's reversal-concentration statistic on the
-        training trace (:func:`.friction.concentration`); an effect that was kept may explain it
-        (plant2's 52 Hz mode: 21.8 with the model as given, 17.6 with the mode added)
+        training trace (:func:`.friction.concentration`, its default ``rest="larger"``); an
+        effect that was kept may explain it
     kept : effect dicts that were kept (``Diagnosis.effects_added``) or that the model had already
     lost_motion : dict axis -> :func:`lost_motion_carried` of the final model (mm or None)
 
