@@ -25,3 +25,38 @@ def test_play_signal_by_hand():
     x = np.array([0.0, 1.0, 2.0, 1.5, 0.0, 0.2])
     # b = 1, starting at rest: h follows x - 1 while rising, holds on the way back until x - h = -1
     assert np.array_equal(play_signal(x, 1.0, 0.0), [0.0, 0.0, 1.0, 1.0, 0.5, -1.0])
+
+
+def test_cli_identify_with_the_play_law_then_export_and_validate(tmp_path):
+    """``fdid identify --method mimo --play-width`` on plant2 data written as a CSV: the model
+    carries the play at that width, says so, and its FMU validates through fmpy."""
+    import subprocess
+    import sys
+
+    from plant2 import scenarios as p2
+    train, vals, _ = p2.scenario("clean_rigid")
+    csv = tmp_path / "run.csv"
+    tr = train[0]
+    np.savetxt(csv, np.column_stack([tr.t, tr.cmd("x"), tr.act("x")]), delimiter=",",
+               header="t_s,x_cmd_mm,x_mm", comments="", fmt="%.12g")
+
+    def fdid(*args):
+        return subprocess.run([sys.executable, "-m", "fdid_fmi.cli", *map(str, args)], capture_output=True,
+                              text=True, timeout=600)
+
+    r = fdid("identify", csv, "--method", "mimo", "--n-complex", "2", "--play-width", "0.004",
+             "--same-sample", "quadratic", "--maxiter", "20", "-o", tmp_path / "m.json")
+    assert r.returncode == 0, r.stderr
+    assert "play (presliding friction) half-width [mm]: x 0.004" in r.stdout
+    from fdid_fmi.model import load_model
+    m = load_model(tmp_path / "m.json")
+    assert [p.params for p in m.inputs if p.kind == "feature"] == \
+        [{"function": "play", "width_mm": 0.004, "source": "position"}]
+    assert not any(p.kind == "friction" for p in m.inputs)
+    r = fdid("export", tmp_path / "m.json", "-o", tmp_path / "m.fmu")
+    assert r.returncode == 0, r.stderr
+    r = fdid("validate", tmp_path / "m.fmu", csv, "--model", tmp_path / "m.json", "--json", tmp_path / "v.json")
+    assert r.returncode == 0, r.stderr + r.stdout
+    import json
+    v = json.loads((tmp_path / "v.json").read_text())
+    assert v["ok"] is True

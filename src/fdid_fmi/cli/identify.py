@@ -25,7 +25,7 @@ READ_BY = {"structure": ("pole-search",), "jobs": ("pole-search",),
                                      "no_integral_action", "no_friction", "velocity", "ma_order",
                                      "same_sample", "real_hz", "omega_hz", "zeta", "n_real", "n_complex")},
            **{k: ("mimo",) for k in ("outputs", "coupled", "integrators", "dc_gain", "lock_complex",
-                                     "external")},
+                                     "external", "play_width")},
            **{k: ("quasi-static", "full-ls") for k in ("cutoff_hz", "filter_order")}}
 
 
@@ -93,6 +93,9 @@ def register(sub):
                    help="a known complex pole pair kept out of the search")
     m.add_argument("--external", action="append", default=[], metavar="CHANNEL",
                    help="use an extra trace channel as an input (e.g. pulses_N)")
+    m.add_argument("--play-width", type=finite_float("--play-width", positive=True), default=None,
+                   metavar="MM", help="friction law: the play (presliding) of this half-width [mm] in place "
+                                      "of sat(v/v_tilde); the structure choice tries 0.001 to 0.016 mm"),
     q = p.add_argument_group("quasi-static / full-ls")
     q.add_argument("--cutoff-hz", type=finite_float("--cutoff-hz", positive=True), default=None,
                    help="Butterworth cutoff of the derivatives")
@@ -200,11 +203,15 @@ def _refuse_unread(args):
     if args.v_tilde is not None and args.v_tilde_range:
         raise InputError("--v-tilde fixes v_tilde; --v-tilde-range is the range it is searched in: "
                          "give one of them", source="--v-tilde-range")
-    if args.no_friction:
+    if args.no_friction and args.play_width is not None:
+        raise InputError("--play-width sets the friction law, which --no-friction leaves out",
+                         source="--play-width")
+    if args.no_friction or args.play_width is not None:
+        why = "--no-friction leaves out" if args.no_friction else "--play-width replaces by the play"
         for dest in ("v_tilde", "v_tilde_range"):
             if getattr(args, dest) != args.option_defaults[dest]:
                 flag = "--" + dest.replace("_", "-")
-                raise InputError(f"{flag} sets the friction input, which --no-friction leaves out",
+                raise InputError(f"{flag} sets the friction input sat(v/v_tilde), which {why}",
                                  source=flag)
     if args.jobs is not None and not structure_is_auto(args):
         raise InputError("--jobs sets the processes fitting the candidates of --structure auto; "
@@ -255,7 +262,7 @@ def bounds_from_args(args, Ts, n_real, n_complex):
     vt = _range(args.v_tilde_range, "--v-tilde-range") if args.v_tilde_range else None
     return Bounds(real, omega, zeta, vt)
 
-PINNING = ("n_real", "n_complex", "real_hz", "omega_hz", "zeta", "v_tilde_range")
+PINNING = ("n_real", "n_complex", "real_hz", "omega_hz", "zeta", "v_tilde_range", "play_width")
 
 
 def structure_is_auto(args):
@@ -325,7 +332,8 @@ def identify_from_args(trace, args, progress=True):
                                     **common) for ax in axes]
         return models[0] if len(models) == 1 else DriveModel.combine(models, method="pole-search")
     outputs = tuple(o.strip() for o in args.outputs.split(",") if o.strip())
-    kw = dict(outputs=outputs, n_real=n_real, n_complex=n_complex, friction=not args.no_friction,
+    kw = dict(outputs=outputs, n_real=n_real, n_complex=n_complex,
+              friction=not args.no_friction and args.play_width is None, play_mm=args.play_width,
               integral_action=not args.no_integral_action,
               integrators=_kv(args.integrators, "--integrators", _integrators, outputs, "acceleration=2"),
               dc_gain=_kv(args.dc_gain, "--dc-gain", _dc_gain, outputs, "position=1:1.0"),
@@ -359,6 +367,10 @@ def summary(model, trace=None):
                 if rec.v_tilde_mm_s:   # 3 decimals; below 0.1 mm/s 3 significant digits (never 0.000)
                     lines.append("v_tilde [mm/s]: " + ", ".join(
                         f"{a} {v:.3f}" if abs(v) >= 0.1 else f"{a} {v:.3g}" for a, v in rec.v_tilde_mm_s.items()))
+                play = [s for s in rec.structure.inputs if s.params.get("function") == "play"]
+                if play:
+                    lines.append("play (presliding friction) half-width [mm]: " + ", ".join(
+                        f"{s.axis} {s.params['width_mm']:g}" for s in play))
             elif "pole_constraints" in b:
                 pc = b["pole_constraints"]
                 lines.append(f"poles: p {pc['p_hz']:.3f} Hz, wn {pc['wn_hz']:.3f} Hz, zeta {pc['zeta']:.3f}"
