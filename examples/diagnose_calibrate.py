@@ -10,6 +10,13 @@ held-out criterion decides whether it is kept.
     .venv/bin/python examples/diagnose_calibrate.py --effects       # + the 7 one-effect virtual runs
     .venv/bin/python examples/diagnose_calibrate.py --effects --plant2 [--json out.json]
                                                                     # + tests/plant2: 9 clean, 8 one-effect
+    ... --default-path      every model by fdid identify's default (the structure chosen from the
+                            data, ``identify_auto``) instead of the thesis's SISO pole search (slow:
+                            about 30-120 s of CPU per run)
+
+Besides the detectors, each run reports ``suspected (note)``: the statistic of the ``suspected``
+note (``diagnose/limits.py``; :func:`fdid_fmi.diagnose.friction.concentration`, its reference the
+larger of the moving and resting residual), against ``REVERSAL_SUSPECT``.
 
 With ``--plant2`` a table gives, per detector, the largest clean value on each plant, the threshold
 1.2 x that value (the rule of ``diagnose/base.py``) set on one plant and applied to the other
@@ -29,12 +36,14 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import numpy as np  # noqa: E402
 
-from fdid_fmi.diagnose import DETECTORS  # noqa: E402
+from fdid_fmi.diagnose import DETECTORS, friction  # noqa: E402
 from fdid_fmi.diagnose import augment as ag  # noqa: E402
 from fdid_fmi.diagnose.base import Context  # noqa: E402
 from fdid_fmi.diagnose.residuals import residuals  # noqa: E402
 from fdid_fmi.diagnose.scenarios import INTEGRAL_ACTION, _measured_only, scenario  # noqa: E402
+from fdid_fmi.diagnose.limits import REVERSAL_SUSPECT  # noqa: E402
 from fdid_fmi.identify import identify_siso  # noqa: E402
+from fdid_fmi.identify.choose_structure import identify_auto  # noqa: E402
 
 MARGIN = 1.2
 VIRTUAL_CLEAN = ("clean", "clean_fast", "clean_soft", "clean_xy", "clean_p")
@@ -52,21 +61,30 @@ def statistics(m, tr):
             s = float(c.statistic) if np.isfinite(c.statistic) else float("nan")
             if c.kind not in out or s > out[c.kind][0]:
                 out[c.kind] = (s, float(c.threshold))
+    out["suspected (note)"] = (max(friction.concentration(ctx.res, a, m.Ts) for a in m.axes), REVERSAL_SUSPECT)
     return out
 
 
-def virtual_run(name, seeds, expected, motor_only=False):
+def fit(tr, axis, integral_action=True, default_path=False):
+    """The model a run's statistics are computed on: the thesis's SISO pole search, or with
+    ``default_path`` fdid identify's default (the structure chosen from the data, one process)."""
+    if default_path:
+        return identify_auto(tr, axis, seed=0, workers=1)
+    return identify_siso(tr, axis=axis, maxiter=30, seed=0, integral_action=integral_action)
+
+
+def virtual_run(name, seeds, expected, motor_only=False, default_path=False):
     tr, _ = scenario(name, seeds=seeds)
     if motor_only:          # the tool-side channel dropped: what a motor encoder alone shows
         tr = _measured_only(tr, ("cmd", "act", "vel"))
-    m = identify_siso(tr, axis="x", maxiter=30, integral_action=INTEGRAL_ACTION.get(name, True))
+    m = fit(tr, "x", INTEGRAL_ACTION.get(name, True), default_path)
     return {"plant": "virtual", "scenario": name + (" (motor only)" if motor_only else ""), "seed": seeds[0],
             "expected": expected, "stats": statistics(m, tr)}
 
 
-def plant2_run(p2, name, seed):
+def plant2_run(p2, name, seed, default_path=False):
     tr = p2.scenario(name, seed=seed)[0][0]
-    m = identify_siso(tr, p2.SCENARIOS[name][1], maxiter=30, seed=0)
+    m = fit(tr, p2.SCENARIOS[name][1], default_path=default_path)
     return {"plant": "plant2", "scenario": name, "seed": seed, "expected": p2.SCENARIOS[name][2],
             "stats": statistics(m, tr)}
 
@@ -109,30 +127,32 @@ def main():
     ap.add_argument("--effects", action="store_true", help="also the one-effect virtual scenarios")
     ap.add_argument("--plant2", action="store_true", help="also tests/plant2 (clean seeds 0-2, effects seed 0)")
     ap.add_argument("--json", default="", help="write every run's statistics to this file")
+    ap.add_argument("--default-path", action="store_true",
+                    help="models by fdid identify's default structure choice instead of the thesis's pole search")
     args = ap.parse_args()
     warnings.simplefilter("ignore")
     runs = []
     for name in VIRTUAL_CLEAN:
         for seeds in ((1, 2), (3, 4), (5, 6)):
-            runs.append(virtual_run(name, seeds, None))
+            runs.append(virtual_run(name, seeds, None, default_path=args.default_path))
             show(runs[-1])
     if args.effects:
         for name, kind in VIRTUAL_EFFECTS.items():
-            runs.append(virtual_run(name, (1, 2), kind))
+            runs.append(virtual_run(name, (1, 2), kind, default_path=args.default_path))
             show(runs[-1])
         for seeds in ((1, 2), (3, 4), (5, 6)):     # diagnose/limits.py: lost motion at the motor?
-            runs.append(virtual_run("backlash", seeds, "backlash", motor_only=True))
+            runs.append(virtual_run("backlash", seeds, "backlash", motor_only=True, default_path=args.default_path))
             show(runs[-1])
     if args.plant2:
         sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
         from plant2 import scenarios as p2
         for name in p2.CLEAN:
             for seed in (0, 1, 2):
-                runs.append(plant2_run(p2, name, seed))
+                runs.append(plant2_run(p2, name, seed, args.default_path))
                 show(runs[-1])
         for name, spec in p2.SCENARIOS.items():
             if spec[2] is not None:
-                runs.append(plant2_run(p2, name, 0))
+                runs.append(plant2_run(p2, name, 0, args.default_path))
                 show(runs[-1])
     print("\nlargest clean statistic per detector (virtual drive):")
     for kind in sorted({k for r in runs for k in r["stats"]}):
