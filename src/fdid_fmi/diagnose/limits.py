@@ -25,7 +25,12 @@ effect's; the user should hear so instead of silence:
                     motion of 2 level |G_t - G_m| (:func:`lost_motion_carried`). Backlash and the
                     elastic deflection of a drive train with friction on the tool side (2 F/k)
                     give it alike; the note says how large it is and that position data cannot
-                    tell the two apart.
+                    tell the two apart. On an axis without a tool-side channel whose model has
+                    the play friction law (``identify.choose_structure``), the note gives the
+                    travel 2b over which its friction builds up after a reversal: presliding,
+                    or a lost motion the motor crosses before it drives the load, which
+                    motor-side data cannot tell apart either (plant2's 15 µm backlash with the
+                    motor encoder only: the default choice is rigid-play16um).
 
 ``not_checked``     a detector could not test for its effect on these data (too few moves, no
                     command energy in its band, too little constant-velocity motion, no
@@ -103,26 +108,34 @@ class Note:
         return d
 
 
+def play_input(model, axis):
+    """Index of the axis's play friction input (``model.FEATURE_FUNCTIONS``), or None."""
+    return next((i for i, p in enumerate(model.inputs) if p.axis == axis and p.kind == "feature"
+                 and p.params.get("function") == "play"), None)
+
+
 def lost_motion_carried(model, axis):
     """Lost motion (mm) the model carries between the motor and the tool side of ``axis``.
 
-    The friction input is ``level`` sat(v/v_tilde), +-``level`` while the axis moves; with d.c.
-    gains G_t to the tool-side output and G_m to the motor-side position (zero with integral
-    action; without it the motor lags too), the tool moves against the motor by
-    2 level |G_t - G_m| between the two directions. None when the model has no friction input,
-    no tool-side output or no motor-side position for the axis.
+    The friction input is ``level`` sat(v/v_tilde), +-``level`` while the axis moves (the play
+    friction law: +-1 once the axis has moved 2b); with d.c. gains G_t to the tool-side output
+    and G_m to the motor-side position (zero with integral action; without it the motor lags
+    too), the tool moves against the motor by 2 level |G_t - G_m| between the two directions.
+    None when the model has no friction input, no tool-side output or no motor-side position for
+    the axis.
     """
     i = model.input_index("friction", axis)
+    level = float(model.inputs[i].params.get("level", 1.0)) if i is not None else 1.0
+    i = i if i is not None else play_input(model, axis)
     o = next((k for k in (model.output_index(kind, axis) for kind in TOOL_KINDS) if k is not None), None)
     p = model.output_index("position", axis)
     if i is None or o is None or p is None or model.position_side(axis) != "motor":
         return None
     G = model.steady_state_maps()[2]
-    level = float(model.inputs[i].params.get("level", 1.0))
     return 2.0 * level * abs(float(G[o, i] - G[p, i]))
 
 
-def data_limits(axes, tool_axes, concentration, kept, lost_motion=None):
+def data_limits(axes, tool_axes, concentration, kept, lost_motion=None, play_mm=None):
     """Notes on what the data of a diagnosis cannot show or only suggest.
 
     Parameters
@@ -134,6 +147,7 @@ def data_limits(axes, tool_axes, concentration, kept, lost_motion=None):
         effect that was kept may explain it
     kept : effect dicts that were kept (``Diagnosis.effects_added``) or that the model had already
     lost_motion : dict axis -> :func:`lost_motion_carried` of the final model (mm or None)
+    play_mm : dict axis -> the half-width b (mm) of the final model's play friction law, if any
 
     Returns
     -------
@@ -142,6 +156,14 @@ def data_limits(axes, tool_axes, concentration, kept, lost_motion=None):
     notes = []
     for a in axes:
         kept_here = {e.get("kind") for e in kept if e.get("axis") == a}
+        b = (play_mm or {}).get(a)
+        if b is not None and a not in tool_axes:
+            notes.append(Note(NoteKind.CARRIED, a, "backlash",
+                              f"axis {a}: the model's friction builds up over {2e3 * b:.3g} µm of travel "
+                              f"after each reversal (the play friction law, half-width {1e3 * b:.3g} µm): "
+                              "presliding friction, or lost motion (backlash) the motor crosses before "
+                              "it drives the load; motor-side data cannot tell the two apart: record a "
+                              "tool-side position or acceleration", 2 * b))
         if a in tool_axes:
             lm = (lost_motion or {}).get(a)
             if lm is not None and lm >= LOST_MOTION_NOTE_MM and "backlash" not in kept_here:

@@ -49,7 +49,7 @@ from ..model import DriveModel
 from . import augment as ag
 from . import coupling, delay, friction, mode, order, periodic, whiteness
 from .base import Context, command_velocity, implausible
-from .limits import Note, NoteKind, data_limits, lost_motion_carried, not_checked, order_too_low
+from .limits import Note, NoteKind, data_limits, lost_motion_carried, not_checked, order_too_low, play_input
 from .residuals import Residuals, residuals, split_halves
 
 DETECTORS = {"friction": friction, "mode": mode, "delay": delay, "periodic": periodic,
@@ -598,7 +598,9 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     conc = ({a: friction.concentration([res_cur["train"]], a, model.Ts) for a in model.axes}
             if "friction" in names else {})
     lost = {a: lost_motion_carried(current, a) for a in tool_axes}
+    play = {a: current.inputs[i].params["width_mm"] for a in model.axes
+            if (i := play_input(current, a)) is not None}
     kept = diag.effects_added + [e for e in (model.effects or []) if e not in diag.effects_added]
-    diag.notes = order_notes + unchecked + data_limits(model.axes, tool_axes, conc, kept, lost)
+    diag.notes = order_notes + unchecked + data_limits(model.axes, tool_axes, conc, kept, lost, play)
     diag.wall_time_s = time.perf_counter() - t0
     return diag

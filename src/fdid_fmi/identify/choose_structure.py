@@ -13,8 +13,14 @@ axis a second complex pair, a P/PD position loop a friction d.c. gain (the 1/P(s
    without feed-forward;
 2. identifies every other candidate -- rigid body, two real poles, two complex pairs, both; each
    with and without integral action -- with that prediction;
-3. keeps the structure with the fewest parameters whose free-run RMS is within ``PARSIMONY`` of
-   the best one (a more complex structure must win by that margin).
+3. tries the other friction law: the thesis's sat(v / v_tilde) builds the friction force up over
+   a velocity band; friction with presliding (LuGre's bristles) builds it up over a travel after
+   each reversal and holds it at rest, which the play of half-width b (``model``'s ``play``
+   feature) describes. Its width is picked among ``PLAY_WIDTHS_MM`` on the largest candidate
+   (r2c2, where missing dynamics cannot stand in for it), then every other candidate is
+   identified with that law as well;
+4. keeps the structure with the fewest parameters whose free-run RMS is within ``PARSIMONY`` of
+   the best one (a more complex structure must win by that margin; a play width counts as one).
 
 The score is the free-run RMS (mm) of the predicted minus measured tracking error on the training
 data: the model driven by the commands alone, which the LS projection does not minimise (it fits
