@@ -17,8 +17,9 @@ axis a second complex pair, a P/PD position loop a friction d.c. gain (the 1/P(s
    a velocity band; friction with presliding (LuGre's bristles) builds it up over a travel after
    each reversal and holds it at rest, which the play of half-width b (``model``'s ``play``
    feature) describes. Its width is picked among ``PLAY_WIDTHS_MM`` on the largest candidate
-   (r2c2, where missing dynamics cannot stand in for it), then every other candidate is
-   identified with that law as well;
+   (r2c2, where missing dynamics cannot stand in for it); when that fit comes within
+   ``PARSIMONY`` of the best sat-law candidate, every other candidate is identified with the
+   play as well;
 4. keeps the structure with the fewest parameters whose free-run RMS is within ``PARSIMONY`` of
    the best one (a more complex structure must win by that margin; a play width counts as one).
 
@@ -287,10 +288,15 @@ def fit_structures(traces, axis="x", same_sample=None, v_tilde=None, method="de"
         # for it), fitted beside the sat-law candidates
         both = run(rest + [with_play(largest, b) for b in PLAY_WIDTHS_MM], [form])
         sat, widths = both[:len(rest)], both[len(rest):]
+        sat = [rm for rm in first if rm[0].same_sample == form] + sat
         width = min(widths, key=lambda rm: rm[0].free_run_rms_mm)
         b = PLAY_WIDTHS_MM[widths.index(width)]
-        results = [rm for rm in first if rm[0].same_sample == form] + sat + [width] + \
-            run([with_play(c, b) for c in family(True) + family(False) if c != largest], [form])
+        # the other structures with the play only where the law can win: its largest structure
+        # within the parsimony margin of the best sat-law one (the virtual drive: 4.6x off)
+        play = []
+        if width[0].free_run_rms_mm <= (1 + PARSIMONY) * min(r.free_run_rms_mm for r, _ in sat):
+            play = run([with_play(c, b) for c in family(True) + family(False) if c != largest], [form])
+        results = sat + [width] + play
     finally:
         if pool is not None:
             pool.shutdown()
