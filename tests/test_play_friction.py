@@ -60,3 +60,17 @@ def test_cli_identify_with_the_play_law_then_export_and_validate(tmp_path):
     import json
     v = json.loads((tmp_path / "v.json").read_text())
     assert v["ok"] is True
+
+
+def test_diagnosis_reads_the_play_as_the_friction_path():
+    """A play-law axis: its friction path is the play input; a motor-only axis gets one note, the
+    travel its friction builds up over (not also 'lost motion was not checked')."""
+    from fdid_fmi.diagnose.augment import friction_path
+    from fdid_fmi.diagnose.limits import NoteKind, data_limits
+    from fdid_fmi.identify.structure import mimo_structure
+    st = mimo_structure(("x",), ("error",), 1, 2, friction=False, play_mm=0.008)
+    assert st.inputs[friction_path(st.inputs, "x")].params["function"] == "play"
+    assert friction_path(mimo_structure(("x",), ("error",), play_mm=0.008).inputs, "x") == 1   # sat first
+    notes = data_limits(["x", "y"], set(), {"x": 30.0, "y": 30.0}, [], None, {"x": 0.008})
+    assert [(n.axis, n.kind) for n in notes] == [("x", NoteKind.CARRIED), ("y", NoteKind.SUSPECTED)]
+    assert "16 µm of travel" in notes[0].text

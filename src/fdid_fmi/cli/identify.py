@@ -203,6 +203,9 @@ def _refuse_unread(args):
     if args.v_tilde is not None and args.v_tilde_range:
         raise InputError("--v-tilde fixes v_tilde; --v-tilde-range is the range it is searched in: "
                          "give one of them", source="--v-tilde-range")
+    if args.play_width is not None and args.play_width > MAX_PLAY_MM:
+        raise InputError(f"{args.play_width:g} mm: a half-width of presliding above {MAX_PLAY_MM:g} mm is "
+                         "not friction; expected a few micrometres, e.g. 0.004", source="--play-width")
     if args.no_friction and args.play_width is not None:
         raise InputError("--play-width sets the friction law, which --no-friction leaves out",
                          source="--play-width")
@@ -218,6 +221,7 @@ def _refuse_unread(args):
                          "here the structure is pinned", source="--jobs")
 
 MAX_POSITION_MM = 1e9          # 1000 km: anything larger is a unit/scale error
+MAX_PLAY_MM = 1.0              # a presliding travel of millimetres is no friction (a unit error)
 MIN_SPAN_MM = 1e-9             # a commanded motion smaller than this is no excitation
 
 

@@ -414,11 +414,19 @@ def add_command_delay(model: DriveModel, axis, d):
 
 
 # --------------------------------------------------------------------------- effects
-def _friction_input(recipe, axis):
-    for s in recipe.inputs:
-        if s.kind == "friction" and s.axis == axis:
-            return s
+def friction_path(inputs, axis):
+    """Index in ``inputs`` (model ports or structure inputs) of the friction force of ``axis``:
+    its friction input sat(v/v_tilde), else its play feature (the play friction law), else None."""
+    for law in (lambda s: s.kind == "friction", lambda s: s.params.get("function") == "play"):
+        for i, s in enumerate(inputs):
+            if s.axis == axis and law(s):
+                return i
     return None
+
+
+def _friction_input(recipe, axis):
+    i = friction_path(recipe.inputs, axis)
+    return None if i is None else recipe.inputs[i]
 
 
 def _force_path_masks(recipe, axis, new_name, outputs=None):
@@ -498,9 +506,9 @@ def carries_lost_motion(recipe, axis):
     (``identify.structure.default_mask``): the model carries a lost motion itself, and a backlash
     feature sat(v/v_b) at v_b = v_tilde would be the same regressor there (recipe masks hold
     s-powers: the d.c. term is power 0)."""
-    fric = [s.name for s in recipe.inputs if s.kind == "friction" and s.axis == axis]
-    return any(0 in recipe.masks.get((o.name, f), ()) for o in recipe.outputs
-               if o.axis == axis and o.kind in TOOL_KINDS for f in fric)
+    fr = _friction_input(recipe, axis)
+    return fr is not None and any(0 in recipe.masks.get((o.name, fr.name), ()) for o in recipe.outputs
+                                  if o.axis == axis and o.kind in TOOL_KINDS)
 
 
 def add_tool_output(recipe, axis):
@@ -614,7 +622,7 @@ def describe_fitted(model: DriveModel, effect: dict) -> dict:
 def _ratio_to_friction(model, axis, name, nums):
     """Ratio of input ``name``'s numerator to the friction path's, at the friction path's lowest
     nonzero term (``nums``: (output, input) -> b)."""
-    fr = model.input_index("friction", axis)
+    fr = friction_path(model.inputs, axis)
     if fr is None:
         return None
     fname = model.inputs[fr].name

@@ -164,6 +164,7 @@ def data_limits(axes, tool_axes, concentration, kept, lost_motion=None, play_mm=
                               "presliding friction, or lost motion (backlash) the motor crosses before "
                               "it drives the load; motor-side data cannot tell the two apart: record a "
                               "tool-side position or acceleration", 2 * b))
+            continue      # it says what the not_observable / suspected notes would
         if a in tool_axes:
             lm = (lost_motion or {}).get(a)
             if lm is not None and lm >= LOST_MOTION_NOTE_MM and "backlash" not in kept_here:

@@ -62,7 +62,7 @@ from .structure import Bounds, default_bounds, mimo_structure, siso_structure
 
 PARSIMONY = 0.05            # a structure with more parameters must lower the free-run RMS by 5 %
 ZETA_TWO_PAIRS = (0.005, 2.0)  # a structural mode is lightly damped: below the default 0.05
-# half-widths b (mm) of the play (presliding) friction law tried on r2c1: a prior, not fitted to
+# half-widths b (mm) of the play (presliding) friction law tried on r2c2: a prior, not fitted to
 # either plant -- presliding displacements of ball screws and guides are micrometres
 PLAY_WIDTHS_MM = (0.001, 0.002, 0.004, 0.008, 0.016)
 
@@ -260,13 +260,14 @@ def choose(scores, parsimony=PARSIMONY):
 
 def fit_structures(traces, axis="x", same_sample=None, v_tilde=None, method="de", seed=0, maxiter=None,
                    velocity="backward", ma_order=1, workers=1):
-    """Steps 1 and 2 of the module docstring: every candidate identified and scored
+    """Steps 1 to 3 of the module docstring: every candidate identified and scored
     (``workers`` > 1: in that many processes).
 
     Returns
     -------
     (results, probes): lists of (CandidateScore, DriveModel or None); ``results`` share the
-    chosen same-sample prediction, ``probes`` are the r2c1 fits with the other predictions.
+    chosen same-sample prediction and are the choice's candidates, ``probes`` are the r2c1 fits
+    with the other predictions and the r2c2 play fits at the other widths.
     """
     traces = [traces] if not isinstance(traces, (list, tuple)) else list(traces)
     opts = dict(v_tilde=v_tilde, seed=seed, maxiter=maxiter, method=method, velocity=velocity,

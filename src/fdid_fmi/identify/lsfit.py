@@ -173,7 +173,9 @@ class LSProblem:
                 W[i] = np.concatenate([np.full(R, e[0]), e])
             elif ins.kind == "feature":     # fixed parameters: rows independent of the search
                 src = ext if ins.params.get("source", "command") == "command" else pos
-                W[i] = feature_signal(ins.params, vel[ins.axis], src[ins.axis])
+                c = cmds[ins.axis]          # the simulator's start: its start velocity's sign
+                start = np.sign(v0[ins.axis] if R else (c[1] - c[0] if c.size > 1 else 0.0))
+                W[i] = feature_signal(ins.params, vel[ins.axis], src[ins.axis], start)
         Z = np.zeros((self.p, N))
         known = np.zeros((self.p, N))
         for j, o in enumerate(s.outputs):
@@ -316,12 +318,13 @@ def _solve_normal(G, rhs):
     return linalg.lstsq(G, rhs, cond=COLLINEAR_RTOL, check_finite=False)[0]
 
 
-def feature_signal(params, vel, pos):
+def feature_signal(params, vel, pos, direction=0.0):
     """Feature input over a record from measured velocity and the position its ``source`` names
-    (the simulator's ``feature_value``, applied to measured signals)."""
+    (the simulator's ``feature_value``, applied to measured signals); ``direction``: the sign of
+    the simulator's start velocity (the play starts slid through in that direction)."""
     f = params["function"]
     if f == "play":
-        return play_signal(pos, params["width_mm"], np.sign(vel[0]))
+        return play_signal(pos, params["width_mm"], direction)
     if f in ("sin_position", "cos_position"):
         arg = 2 * np.pi * pos / params["period_mm"]
         return np.sin(arg) if f == "sin_position" else np.cos(arg)
