@@ -103,7 +103,8 @@ def feature_value(params, v_prev, x_cmd, x_prev, h=None):
     the play operator's state)."""
     f = params["function"]
     if f == "play":
-        return _sat((x_prev - h) / params["width_mm"])
+        b = params["width_mm"]
+        return 1.0 if h <= x_prev - b else (-1.0 if h >= x_prev + b else (x_prev - h) / b)
     if f in ("sin_position", "cos_position"):
         x = x_cmd if params.get("source", "command") == "command" else x_prev
         arg = 2.0 * np.pi * x / params["period_mm"]

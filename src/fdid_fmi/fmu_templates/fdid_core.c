@@ -132,8 +132,10 @@ static double feature_value(const FdidInput *in, double v_prev, double x_cmd, do
                             double h) {
     double s;
     switch (in->function) {
-    case FDID_F_PLAY:
-        return fdid_sat((x_prev - h) / in->width_mm); /* [-1, 1] also after rounding */
+    case FDID_F_PLAY: /* exactly +-1 once slid through: h is then x_prev -+ b to the bit */
+        if (h <= x_prev - in->width_mm) return 1.0;
+        if (h >= x_prev + in->width_mm) return -1.0;
+        return (x_prev - h) / in->width_mm;
 #if FDID_USE_LIBM
     case FDID_F_SIN_POSITION:
     case FDID_F_COS_POSITION: {

@@ -342,16 +342,18 @@ def play_signal(x, b, direction):
     """The play feature over a record of positions x (mm), as the simulator applies it (its
     ``feature_value`` and ``update_state``: the feature reads the previous step's position):
     w_0 = ``direction`` (the start ramp's: +-1 moving, 0 at rest), h = x_0 - b direction, and
-    for k >= 1: h = min(max(h, x_k-1 - b), x_k-1 + b), w_k = sat((x_k-1 - h) / b)."""
+    for k >= 1: h = min(max(h, x_k-1 - b), x_k-1 + b), w_k = (x_k-1 - h) / b, exactly +-1 where
+    h sits on a bound."""
     x = np.asarray(x, float)
     w = np.empty_like(x)
     w[0] = direction
     h = x[0] - b * direction
     for k in range(1, x.size):
         xp = float(x[k - 1])
-        h = min(max(h, xp - b), xp + b)
-        w[k] = (xp - h) / b
-    return np.clip(w, -1.0, 1.0)
+        lo, hi = xp - b, xp + b
+        h = min(max(h, lo), hi)
+        w[k] = 1.0 if h <= lo else (-1.0 if h >= hi else (xp - h) / b)
+    return w
 
 
 def _measured_output(tr, o):
