@@ -76,3 +76,5 @@ def test_diagnosis_reads_the_play_as_the_friction_path():
     notes = data_limits(["x", "y"], set(), {"x": 30.0, "y": 30.0}, [], None, {"x": 0.008})
     assert [(n.axis, n.kind) for n in notes] == [("x", NoteKind.CARRIED), ("y", NoteKind.SUSPECTED)]
     assert "16 µm of travel" in notes[0].text
+    small = data_limits(["x"], set(), {"x": 1.0}, [], None, {"x": 0.002})   # 4 µm: below the 5 µm
+    assert [n.kind for n in small] == [NoteKind.NOT_OBSERVABLE]

@@ -27,10 +27,11 @@ effect's; the user should hear so instead of silence:
                     give it alike; the note says how large it is and that position data cannot
                     tell the two apart. On an axis without a tool-side channel whose model has
                     the play friction law (``identify.choose_structure``), the note gives the
-                    travel 2b over which its friction builds up after a reversal: presliding,
-                    or a lost motion the motor crosses before it drives the load, which
-                    motor-side data cannot tell apart either (plant2's 15 µm backlash with the
-                    motor encoder only: the default choice is rigid-play16um).
+                    travel 2b over which its friction builds up after a reversal when it is at
+                    least the same 5 µm: presliding, or a lost motion the motor crosses before
+                    it drives the load, which motor-side data cannot tell apart either (plant2's
+                    15 µm backlash with the motor encoder only: r2c1-play16um, 32 µm; its clean
+                    feed-forward axis: r1c2-play2um, 4 µm, no note).
 
 ``not_checked``     a detector could not test for its effect on these data (too few moves, no
                     command energy in its band, too little constant-velocity motion, no
@@ -157,7 +158,7 @@ def data_limits(axes, tool_axes, concentration, kept, lost_motion=None, play_mm=
     for a in axes:
         kept_here = {e.get("kind") for e in kept if e.get("axis") == a}
         b = (play_mm or {}).get(a)
-        if b is not None and a not in tool_axes:
+        if b is not None and a not in tool_axes and 2 * b >= LOST_MOTION_NOTE_MM:
             notes.append(Note(NoteKind.CARRIED, a, "backlash",
                               f"axis {a}: the model's friction builds up over {2e3 * b:.3g} µm of travel "
                               f"after each reversal (the play friction law, half-width {1e3 * b:.3g} µm): "
