@@ -146,14 +146,18 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
         for a, v in vfix.items():
             if not (np.isfinite(v) and v > 0):
                 raise InputError(f"v_tilde must be > 0 mm/s, got {v!r}", column=f"{a}.v_tilde")
+    # a friction law needs the measured motion: the default v_tilde range would be [0, 0] (an
+    # error naming 'bounds') and a play of a constant position fits a silently wrong model
+    play_axes = [s.axis for s in structure.inputs if s.params.get("function") == "play"]
+    searched = [a for a in fric_axes if a not in vfix and bounds.v_tilde is None]
+    for a in dict.fromkeys(searched + play_axes):
+        if not max(np.max(np.abs(sg.vel[a][sg.R:])) for sg in prob.segments) > 0:
+            tr = prob.traces[0]
+            raise InputError(f"the measured position of axis '{a}' never moves while its command "
+                             f"does: no motion to identify its friction from; check the channel (a "
+                             f"stuck axis or a dead encoder)", source=tr.source,
+                             column=tr.roles[a].get("act", f"{a}.act"))
     if bounds.v_tilde is None and any(a not in vfix for a in fric_axes):
-        for a in fric_axes:     # else the default range is [0, 0] and the error names 'bounds'
-            if a not in vfix and not max(np.max(np.abs(sg.vel[a][sg.R:])) for sg in prob.segments) > 0:
-                tr = prob.traces[0]
-                raise InputError(f"the measured position of axis '{a}' never moves while its command "
-                                 f"does: no velocity to search the friction transition from; check the "
-                                 f"channel (a stuck axis or a dead encoder)", source=tr.source,
-                                 column=tr.roles[a].get("act", f"{a}.act"))
         vmax = max(np.max(np.abs(sg.vel[a])) for sg in prob.segments for a in fric_axes)
         bounds = Bounds(bounds.real_hz, bounds.omega_hz, bounds.zeta, (1e-4 * vmax, 0.3 * vmax))
     bounds.check(Ts)
