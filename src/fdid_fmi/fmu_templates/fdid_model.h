@@ -10,7 +10,8 @@
  *               the d.c. response G1 u_ref is added to the outputs (G1 = C (I-A)^-1 B + D);
  *   start       steady state of a ramp at the axis start velocity v0:
  *               xi0 = S u0 - S2 du, du = v0 Ts on the command inputs, friction inputs at
- *               L sat(v0 / v_tilde); x[-1] = x[0] - v0 Ts; v[-1] = v0;
+ *               L sat(v0 / v_tilde), play inputs slid through, sign(v0), with
+ *               h = x[-1] - b sign(v0); x[-1] = x[0] - v0 Ts; v[-1] = v0;
  *   step k      feature inputs from the previous step's velocity / position (the play feature
  *               from its operator state h, updated with each new position); friction inputs
  *               d = L sat(v / v_tilde) solved exactly with stiction (v = alpha + beta d is
