@@ -21,10 +21,12 @@ Initial state. The model starts in the steady state of a ramp: each command inpu
 axis start velocity v0 (0 = at rest at the first commanded position; a record that starts in
 motion passes its commanded start velocity). With u[k] = u0 + k du,
 xi0 = (I-A)^-1 (B u0 - Delta), Delta = (I-A)^-1 B du. Friction inputs start at
-L sat(v0 / v_tilde); the previous position x[-1] = x[0] - v0 Ts; the previous velocity is v0.
+L sat(v0 / v_tilde), play inputs slid through (sign(v0), 0 at rest); the previous position
+x[-1] = x[0] - v0 Ts; the previous velocity is v0.
 
 Step k, given xi, the inputs (commands, externals) and the axis states of step k-1:
-1. feature inputs from the previous step's velocity / position;
+1. feature inputs from the previous step's velocity / position (the play from its state h,
+   which follows each new position: h <- min(max(h, x - b), x + b));
 2. friction inputs d = L sat(v / v_tilde), where the axis velocity v is either a model
    ``velocity`` output or the backward difference (x[k] - x[k-1]) / Ts of the ``position``
    output. v depends on d through the feed-through D, so v = alpha + beta d is affine and
