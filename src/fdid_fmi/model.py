@@ -45,6 +45,12 @@ OUTPUT_KINDS = ("position", "error", "velocity", "tool_position", "acceleration"
 FEATURE_FUNCTIONS = ("sat", "abs_sat", "stribeck", "sin_position", "cos_position", "play")
 
 
+def is_play(inp):
+    """True for a play (presliding friction) feature input: a :class:`Port` of a model or an input
+    of an identification structure (both carry ``kind`` and ``params``)."""
+    return inp.kind == "feature" and inp.params.get("function") == "play"
+
+
 def delayed_input(kind, params):
     """True for an input from outside the drive: a command, a measured external input, or a
     feature computed from the command. A sampled drive answers such an input one controller

@@ -7,7 +7,7 @@ import sys
 import numpy as np
 
 from ..errors import InputError
-from ..model import DriveModel, check_name
+from ..model import DriveModel, check_name, is_play
 from ..outputs import check_output
 from . import naming
 from .argtypes import finite_float, int_in
@@ -371,7 +371,7 @@ def summary(model, trace=None):
                 if rec.v_tilde_mm_s:   # 3 decimals; below 0.1 mm/s 3 significant digits (never 0.000)
                     lines.append("v_tilde [mm/s]: " + ", ".join(
                         f"{a} {v:.3f}" if abs(v) >= 0.1 else f"{a} {v:.3g}" for a, v in rec.v_tilde_mm_s.items()))
-                play = [s for s in rec.structure.inputs if s.params.get("function") == "play"]
+                play = [s for s in rec.structure.inputs if is_play(s)]
                 if play:
                     lines.append("play (presliding friction) half-width [mm]: " + ", ".join(
                         f"{s.axis} {s.params['width_mm']:g}" for s in play))

@@ -51,7 +51,7 @@ from ..errors import InputError
 from ..identify.pole_search import identify_mimo
 from ..identify.record import PoleSearchRecord
 from ..identify.structure import Bounds, InputSpec, OutputSpec, Structure, default_bounds
-from ..model import DriveModel, port_name
+from ..model import DriveModel, is_play, port_name
 from .residuals import delayed, with_channels
 
 
@@ -417,7 +417,7 @@ def add_command_delay(model: DriveModel, axis, d):
 def friction_path(inputs, axis):
     """Index in ``inputs`` (model ports or structure inputs) of the friction force of ``axis``:
     its friction input sat(v/v_tilde), else its play feature (the play friction law), else None."""
-    for law in (lambda s: s.kind == "friction", lambda s: s.params.get("function") == "play"):
+    for law in (lambda s: s.kind == "friction", is_play):
         for i, s in enumerate(inputs):
             if s.axis == axis and law(s):
                 return i

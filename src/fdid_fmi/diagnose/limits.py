@@ -73,7 +73,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from enum import Enum
 
-from .augment import TOOL_KINDS
+from ..model import is_play
+from .augment import TOOL_KINDS, friction_path
 
 REVERSAL_SUSPECT = 19.1
 LOST_MOTION_NOTE_MM = 0.005
@@ -111,8 +112,7 @@ class Note:
 
 def play_input(model, axis):
     """Index of the axis's play friction input (``model.FEATURE_FUNCTIONS``), or None."""
-    return next((i for i, p in enumerate(model.inputs) if p.axis == axis and p.kind == "feature"
-                 and p.params.get("function") == "play"), None)
+    return next((i for i, p in enumerate(model.inputs) if p.axis == axis and is_play(p)), None)
 
 
 def lost_motion_carried(model, axis):
@@ -125,14 +125,13 @@ def lost_motion_carried(model, axis):
     None when the model has no friction input, no tool-side output or no motor-side position for
     the axis.
     """
-    i = model.input_index("friction", axis)
-    level = float(model.inputs[i].params.get("level", 1.0)) if i is not None else 1.0
-    i = i if i is not None else play_input(model, axis)
+    i = friction_path(model.inputs, axis)     # sat(v/v_tilde), else the play (level 1)
     o = next((k for k in (model.output_index(kind, axis) for kind in TOOL_KINDS) if k is not None), None)
     p = model.output_index("position", axis)
     if i is None or o is None or p is None or model.position_side(axis) != "motor":
         return None
     G = model.steady_state_maps()[2]
+    level = float(model.inputs[i].params.get("level", 1.0))
     return 2.0 * level * abs(float(G[o, i] - G[p, i]))
 
 

@@ -16,7 +16,7 @@ from scipy.linalg import block_diag
 
 from .. import __version__
 from ..errors import InputError
-from ..model import DriveModel, Port, delayed_input
+from ..model import DriveModel, Port, delayed_input, is_play
 from . import regressors as rg
 from .lsfit import LSProblem
 from .record import PoleSearchRecord
@@ -148,7 +148,7 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
                 raise InputError(f"v_tilde must be > 0 mm/s, got {v!r}", column=f"{a}.v_tilde")
     # a friction law needs the measured motion: the default v_tilde range would be [0, 0] (an
     # error naming 'bounds') and a play of a constant position fits a silently wrong model
-    play_axes = [s.axis for s in structure.inputs if s.params.get("function") == "play"]
+    play_axes = [s.axis for s in structure.inputs if is_play(s)]
     searched = [a for a in fric_axes if a not in vfix and bounds.v_tilde is None]
     for a in dict.fromkeys(searched + play_axes):
         if not max(np.max(np.abs(sg.vel[a][sg.R:])) for sg in prob.segments) > 0:

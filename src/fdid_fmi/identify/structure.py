@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..model import delayed_input, port_name
+from ..model import delayed_input, is_play, port_name
 from .regressors import SAME_SAMPLE
 
 INPUT_SOURCES = ("command", "friction", "external", "feature")
@@ -363,7 +363,7 @@ def mimo_structure(axes=("x",), outputs=("error",), n_real=1, n_complex=1, coupl
             if not coupled and s.axis != o.axis and s.kind != "external":
                 continue
             # the play feature is a friction force (presliding): the friction's terms and sign
-            kind = "friction" if s.params.get("function") == "play" else s.kind
+            kind = "friction" if is_play(s) else s.kind
             mask[(o.name, s.name)] = default_mask(o.kind, kind, n, integral_action)
             if kind == "friction" and s.axis == o.axis and o.kind == "error":
                 sign[(o.name, s.name)] = +1
