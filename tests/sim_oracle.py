@@ -102,9 +102,11 @@ def feature_value(params, v_prev, x_cmd, x_prev, h=None):
     """Value of a ``feature`` input (see DriveModel) from the previous step's axis state (``h``:
     the play operator's state)."""
     f = params["function"]
-    if f == "play":
+    if f in ("play", "play_stribeck"):
         b = params["width_mm"]
-        return 1.0 if h <= x_prev - b else (-1.0 if h >= x_prev + b else (x_prev - h) / b)
+        p = 1.0 if h <= x_prev - b else (-1.0 if h >= x_prev + b else (x_prev - h) / b)
+        q = v_prev / params.get("v_s", 1.0)
+        return p if f == "play" else p * math.exp(-(q * q))
     if f in ("sin_position", "cos_position"):
         x = x_cmd if params.get("source", "command") == "command" else x_prev
         arg = 2.0 * np.pi * x / params["period_mm"]
@@ -244,16 +246,18 @@ def _run(plan, cmds, exts, t, v0):
         u0[i] = plan.level[j] * _sat(v0[ins[i].axis] / plan.vt[j])
     for i in plan.ext:
         u0[i] = exts[ins[i].name][0]
-    play = [i for i in plan.feat if ins[i].params["function"] == "play"]
+    play = [i for i in plan.feat if ins[i].params["function"] in ("play", "play_stribeck")]
     for i in plan.feat:
         a = ins[i].axis
-        u0[i] = float(np.sign(v0[a])) if i in play else feature_value(ins[i].params, v0[a], cmds[a][0],
-                                                                       cmds[a][0])
+        # the play has slid through on the start ramp: h = x - b sign(v0), so the value is sign(v0)
+        u0[i] = feature_value(ins[i].params, v0[a], cmds[a][0], cmds[a][0],
+                              cmds[a][0] - float(np.sign(v0[a])) * ins[i].params["width_mm"]) \
+            if i in play else feature_value(ins[i].params, v0[a], cmds[a][0], cmds[a][0])
     xi = _mv(plan.S, u0) - _mv(plan.S2, du)
     y0 = _mv(C, xi) + _mv(D, u0) + yoff
     x_prev = {a: y0[plan.pos[a]] - v0[a] * Ts for a in plan.axes}
     # the play has slid through on the start ramp: h = x - b sign(v0)
-    hold = {i: x_prev[ins[i].axis] - u0[i] * ins[i].params["width_mm"] for i in play}
+    hold = {i: x_prev[ins[i].axis] - float(np.sign(v0[ins[i].axis])) * ins[i].params["width_mm"] for i in play}
     v_prev = dict(v0)
 
     Y = np.empty((N, ny))

@@ -1,7 +1,7 @@
 """Issue 8 acceptance: identified twins run the way co-simulation masters run them.
 
-Virtual drive without and with feed-forward, plant2 with the play friction law (the play's
-state runs in the FMU) and the real EMPS drive: the pole-search model is
+Virtual drive without and with feed-forward, plant2's Stribeck axis with the play friction law
+and its breakaway term (two play states run in the FMU) and the real EMPS drive: the pole-search model is
 exported, then driven (a) by ``fdid validate``, i.e. ``fmpy.simulate_fmu`` with an input table of
 the measured commands and ``step_size`` = the nominal Ts as a decimal, and (b) by the ecos
 co-simulation engine (set inputs, step, read). Either gives ``fdid simulate``'s positions at the
@@ -14,6 +14,7 @@ import pytest
 
 from fdid_fmi.fmu import export_fmu, validate_fmu
 from fdid_fmi.identify import identify_mimo, identify_siso, mimo_structure
+from fdid_fmi.identify.structure import InputSpec
 from fdid_fmi.metrics import rms
 from fdid_fmi.simulate import run_up, simulate
 from fdid_fmi.virtual import MachineConfig, presets, simulate_machine
@@ -39,9 +40,15 @@ def twin(request, tmp_path_factory, shared_data_optional):
                                                    maxiter=30))
     elif request.param == "play law":      # presliding friction: the play's state runs in the FMU
         from plant2 import scenarios as p2
-        train, vals, _ = p2.scenario("clean_rigid")
-        st = mimo_structure(("x",), ("error",), 1, 2, friction=False, play_mm=0.004, same_sample="quadratic")
+        train, vals, _ = p2.scenario("stribeck")
+        st = mimo_structure(("x",), ("error",), 1, 2, friction=False, play_mm=0.002, same_sample="quadratic")
+        # and its breakaway (what diagnosis adds on this axis: augment.add_stribeck), on the play's terms
+        brk = InputSpec("feature", "x", params={"function": "play_stribeck", "width_mm": 0.002, "v_s": 3.0,
+                                                "source": "position"})
+        st.inputs.append(brk)
+        st.mask.update({(o, brk.name): t for (o, i), t in list(st.mask.items()) if i == "x_play"})
         m, val = identify_mimo(train, st, seed=0, maxiter=30), vals[0]
+        assert [p.params["function"] for p in m.inputs if p.kind == "feature"] == ["play", "play_stribeck"]
     else:
         if shared_data_optional is None:
             pytest.skip("real data folder ../shared/data is absent")

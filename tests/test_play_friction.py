@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import fmu_support as fs
-from fdid_fmi.identify.lsfit import play_signal
+from fdid_fmi.identify.lsfit import feature_signal, play_signal
 from fdid_fmi.simulate import simulate
 
 
@@ -21,6 +21,21 @@ def test_regressor_is_the_input_the_simulator_applies(v_start, start):
     assert np.array_equal(w, sim.u[:, i])
     assert np.all(np.abs(w[np.abs(w) > 1 - 1e-9]) == 1.0)      # slid through: exactly +-1
     assert np.any((np.abs(w) > 0.01) & (np.abs(w) < 0.99)) and np.any(np.abs(w) == 1.0)   # ramps, saturates
+
+
+def test_play_stribeck_regressor_is_the_input_the_simulator_applies():
+    """The play's Stribeck term: the play times exp(-(v / v_s)^2) of the previous step's velocity,
+    as the simulator applies it (to libm's last bit, after the start sample)."""
+    m = fs.feature_model()
+    n = 2000
+    cmds = {"x": fs.smooth_moves(n, np.random.default_rng(12), v_start=30.0)}
+    v0 = {"x": (cmds["x"][1] - cmds["x"][0]) / m.Ts}
+    sim = simulate(m, cmds, Ts=m.Ts, start_velocity=v0, externals={"force_N": np.zeros(n)})
+    i = [p.name for p in m.inputs].index("x_play_stribeck")
+    w = feature_signal(m.inputs[i].params, sim.axes["x"]["velocity"], sim.axes["x"]["position"], np.sign(v0["x"]))
+    np.testing.assert_allclose(w[1:], sim.u[1:, i], rtol=0, atol=1e-15)
+    assert sim.u[0, i] == pytest.approx(np.exp(-(v0["x"] / 3.0) ** 2), rel=1e-15)    # slid through at the start
+    assert np.any(np.abs(w) > 0.9) and np.any((np.abs(w) > 0.01) & (np.abs(w) < 0.5))   # breakaway, decay
 
 
 def test_play_signal_by_hand():
@@ -62,6 +77,29 @@ def test_cli_identify_with_the_play_law_then_export_and_validate(tmp_path):
     import json
     v = json.loads((tmp_path / "v.json").read_text())
     assert v["ok"] is True
+
+
+def test_the_play_law_recipe_keeps_the_friction_terms_and_sign():
+    """``augment.to_play_law``: the sat friction input becomes the play with its numerator terms
+    and sign; the Stribeck term of a play-law axis is the play's (``play_stribeck``), the same
+    width, the friction path's terms."""
+    from fdid_fmi.diagnose import augment as ag
+    from fdid_fmi.identify import identify_mimo, mimo_structure
+    from plant2 import scenarios as p2
+    train, _, _ = p2.scenario("clean_rigid")
+    m = identify_mimo(train[0], mimo_structure(("x",), ("error",), 1, 1, same_sample="hold"), seed=0, maxiter=2)
+    r = ag.recipe_from_model(m)
+    p = ag.to_play_law(r, "x", 0.002)
+    (o,) = [o.name for o in r.outputs]
+    assert [s.kind for s in p.inputs] == ["command", "feature"] and p.inputs[1].name == "x_play"
+    assert p.inputs[1].params == {"function": "play", "width_mm": 0.002, "source": "position"}
+    assert p.masks[(o, "x_play")] == r.masks[(o, "x_dnf")] and p.friction_sign == {(o, "x_play"): 1}
+    assert "x" not in p.v_tilde and "x" in r.v_tilde and r.inputs[1].kind == "friction"   # r unchanged
+    s = ag.add_stribeck(p, "x", 3.0)
+    assert s.inputs[-1].params == {"function": "play_stribeck", "width_mm": 0.002, "v_s": 3.0,
+                                   "source": "position"}
+    assert s.masks[(o, s.inputs[-1].name)] == r.masks[(o, "x_dnf")]
+    assert ag.add_stribeck(r, "x", 3.0).inputs[-1].params["function"] == "stribeck"     # the sat law's
 
 
 def test_diagnosis_reads_the_play_as_the_friction_path():

@@ -13,11 +13,14 @@ with inputs ``u`` and outputs ``y`` described by :class:`Port` lists. Input kind
               around the model's own velocity v of the axis and solved exactly at each step.
 ``feature``   a nonlinear function of the previous step's velocity or of the position
               (``params["function"]``: ``sat``, ``abs_sat``, ``stribeck``, ``sin_position``,
-              ``cos_position``, ``play``); used by effects that diagnosis adds and by the
-              structure choice. ``play`` is the play (backlash) operator of the model's own
-              position x with half-width b = ``width_mm``: h_k = min(max(h_k-1, x_k - b),
-              x_k + b), value (x_k - h_k) / b in [-1, 1], a friction force that builds up over
-              the travel 2b after each reversal (presliding) instead of over a velocity band.
+              ``cos_position``, ``play``, ``play_stribeck``); used by effects that diagnosis
+              adds and by the structure choice. ``play`` is the play (backlash) operator of the
+              model's own position x with half-width b = ``width_mm``: h_k = min(max(h_k-1,
+              x_k - b), x_k + b), value (x_k - h_k) / b in [-1, 1], a friction force that builds
+              up over the travel 2b after each reversal (presliding) instead of over a velocity
+              band. ``play_stribeck`` is that value times exp(-(v / v_s)^2): the breakaway
+              excess of a play-law axis, which like the play holds at rest (``stribeck`` is
+              the sat law's, s exp(-(v / v_s)^2) with s = sat(v / v_tilde)).
 
 Output kinds: ``position`` (required per axis), ``error`` (x_r - x), ``velocity``,
 ``tool_position``, ``acceleration``, ``other``. The simulation semantics that use these
@@ -42,13 +45,19 @@ FORMAT = "fdid-fmi-model"
 FORMAT_VERSION = 2          # 2: causal models (no same-sample response to commands)
 INPUT_KINDS = ("command", "external", "friction", "feature")
 OUTPUT_KINDS = ("position", "error", "velocity", "tool_position", "acceleration", "other")
-FEATURE_FUNCTIONS = ("sat", "abs_sat", "stribeck", "sin_position", "cos_position", "play")
+FEATURE_FUNCTIONS = ("sat", "abs_sat", "stribeck", "sin_position", "cos_position", "play", "play_stribeck")
+PLAY_FUNCTIONS = ("play", "play_stribeck")      # features with a play operator's state
 
 
 def is_play(inp):
     """True for a play (presliding friction) feature input: a :class:`Port` of a model or an input
     of an identification structure (both carry ``kind`` and ``params``)."""
     return inp.kind == "feature" and inp.params.get("function") == "play"
+
+
+def has_play_state(inp):
+    """True for a feature input that carries a play operator's state (``play``, ``play_stribeck``)."""
+    return inp.kind == "feature" and inp.params.get("function") in PLAY_FUNCTIONS
 
 
 def delayed_input(kind, params):
@@ -75,8 +84,8 @@ class Port:
     axis : str or None
     params : dict   friction: ``v_tilde`` [mm/s], ``level`` [-];
                     feature: ``function``, ``v_tilde``, ``v_s`` [mm/s], ``period_mm``,
-                    ``width_mm``, ``source`` (``command`` or ``position``; ``play``:
-                    ``position``)
+                    ``width_mm``, ``source`` (``command`` or ``position``; ``play`` and
+                    ``play_stribeck``: ``position``)
     description : str
     """
 
@@ -613,8 +622,8 @@ def check_simulation_numbers(model):
     """Every number a simulation uses is finite and in range (last step of validate).
 
     Ts in TS_RANGE; friction ``v_tilde`` > 0 and ``level`` finite >= 0; feature parameters
-    (``v_tilde`` for sat/abs_sat/stribeck, ``v_s`` for stribeck, ``period_mm`` for sin/cos,
-    ``source`` command/position, ``width_mm`` and source position for play); matrix entries and the steady-state maps finite and at
+    (``v_tilde`` for sat/abs_sat/stribeck, ``v_s`` for stribeck/play_stribeck, ``period_mm`` for
+    sin/cos, ``source`` command/position, ``width_mm`` and source position for play/play_stribeck); matrix entries and the steady-state maps finite and at
     most MAX_ABS in magnitude. Raises InputError naming the parameter.
     """
     lo, hi = TS_RANGE
@@ -637,17 +646,17 @@ def check_simulation_numbers(model):
             fn = prt.params.get("function")
             if fn in ("sat", "abs_sat", "stribeck"):
                 _positive(prt, "v_tilde", "mm/s")
-            if fn == "stribeck":
+            if fn in ("stribeck", "play_stribeck"):
                 _positive(prt, "v_s", "mm/s")
             if fn in ("sin_position", "cos_position"):
                 _positive(prt, "period_mm", "mm")
                 if prt.params.get("source", "command") not in ("command", "position"):
                     raise InputError("feature source must be 'command' or 'position', got "
                                      f"{_short(prt.params.get('source'))}", column=f"{prt.name}.source")
-            if fn == "play":
+            if fn in PLAY_FUNCTIONS:
                 _positive(prt, "width_mm", "mm")
                 if prt.params.get("source") != "position":
-                    raise InputError("the play feature acts on the model's own position: source "
+                    raise InputError(f"the {fn} feature acts on the model's own position: source "
                                      f"must be 'position', got {_short(prt.params.get('source'))}",
                                      column=f"{prt.name}.source")
             if prt.axis is None:

@@ -172,7 +172,9 @@ def feature_model():
              Port("x_abs", "1", "feature", "x", {"function": "abs_sat", "v_tilde": 2.0}),
              Port("x_sat", "1", "feature", "x", {"function": "sat", "v_tilde": 3.0}),
              Port("x_play", "1", "feature", "x", {"function": "play", "width_mm": 0.05,
-                                                  "source": "position"})]
+                                                  "source": "position"}),
+             Port("x_play_stribeck", "1", "feature", "x", {"function": "play_stribeck", "width_mm": 0.02,
+                                                           "v_s": 3.0, "source": "position"})]
     ext = Port("force_N", "N", "external", None, {"channel": "force_N"}, "external force on the table")
     A, B, Ce, De = axis_blocks()
     ne = len(feats) + 1
@@ -186,7 +188,7 @@ def feature_model():
     Ce2[:n0] = Ce
     De2 = np.zeros(2 + ne)
     De2[:2] = De
-    gains = [4e2, 3e2, 5e2, 2e2, 6e2, 3e2, 2e2]
+    gains = [4e2, 3e2, 5e2, 2e2, 6e2, 3e2, 4e2, 2e2]
     for k in range(ne):
         sl = slice(n0 + 3 * k, n0 + 3 * k + 3)
         A2[sl, sl] = A1

@@ -11,7 +11,9 @@ code:
 effect (``kind``)           how the model carries it
 ==========================  ======================================================================
 ``stribeck``                feature input s exp(-(v/v_s)^2), s = sat(v / v_tilde), through the
-                            friction path's numerator terms
+                            friction path's numerator terms; on a play-law axis s is the play
+                            (``play_stribeck``), and a sat-law axis can also be tried in the
+                            play law (:func:`to_play_law`)
 ``asymmetric_friction``     feature input |sat(v / v_tilde)| (a direction-independent friction
                             offset), friction path terms
 ``backlash``                feature input sat(v / v_b) on a fitted tool-side output (all numerator
@@ -469,7 +471,30 @@ def add_feature(recipe: Recipe, axis, function, params, kind, effect_params, nam
     return r
 
 
+def to_play_law(recipe, axis, b):
+    """Recipe with the axis's friction law sat(v / v_tilde) replaced by the play of half-width
+    ``b`` (mm), with the friction's numerator terms and sign (the structure choice's play law,
+    ``identify.structure.mimo_structure``)."""
+    r = recipe.copy()
+    i = next(i for i, s in enumerate(r.inputs) if s.kind == "friction" and s.axis == axis)
+    old, new = r.inputs[i].name, _unique(r, f"{axis}_play")
+    r.inputs[i] = InputSpec("feature", axis, params={"function": "play", "width_mm": float(b),
+                                                     "source": "position"}, name=new)
+    r.masks = {(o, new if n == old else n): v for (o, n), v in r.masks.items()}
+    r.friction_sign = {(o, new if n == old else n): v for (o, n), v in r.friction_sign.items()}
+    r.v_tilde.pop(axis, None)
+    return r
+
+
 def add_stribeck(recipe, axis, v_s):
+    """Recipe with the Stribeck term of the axis's friction law: s exp(-(v / v_s)^2) with s its
+    sat(v / v_tilde), or its play (``play_stribeck``: the breakaway then holds at rest as the
+    play does)."""
+    fr = _friction_input(recipe, axis)
+    if fr is not None and is_play(fr):
+        b = float(fr.params["width_mm"])
+        return add_feature(recipe, axis, "play_stribeck", {"width_mm": b, "v_s": float(v_s), "source": "position"},
+                           "stribeck", {"v_s_mm_s": float(v_s), "width_mm": b}, name=f"{axis}_stribeck")
     vt = recipe.v_tilde.get(axis, max(1e-3, v_s / 10))
     return add_feature(recipe, axis, "stribeck", {"v_tilde": vt, "v_s": float(v_s), "source": "position"},
                        "stribeck", {"v_s_mm_s": float(v_s), "v_tilde_mm_s": vt}, name=f"{axis}_stribeck")

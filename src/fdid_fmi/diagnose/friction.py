@@ -8,6 +8,12 @@ Stribeck (breakaway above Coulomb)
     speed only, so its residual sits at the ends of each move; white-ish noise gives ~1.
     Parameter v_s (mm/s): the Stribeck velocity minimising the LS objective of a quick refit (poles
     in a local window), over a 7-point log grid from 2 v_tilde to 0.2 max|v|, parabola-refined.
+    The term is the friction law's: s exp(-(v / v_s)^2) with s = sat(v / v_tilde), or with s the
+    play on a play-law axis. A sat-law axis gets a second candidate in the play law
+    (:func:`_play_law_candidate`): a breakaway that holds the axis at rest (LuGre's, plant2's)
+    acts through presliding, which sat(v / v_tilde) cannot carry (its refit was worse in free
+    run there). That candidate must also beat the play law without the Stribeck term
+    (``reference``), so what the law change alone gains is never credited to a Stribeck effect.
 Asymmetric Coulomb
     Statistic: |t| of the direction-independent mean residual over moves (a friction level that
     differs by direction acts as a force offset that does not change sign at a reversal):
@@ -45,6 +51,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..identify.choose_structure import PLAY_WIDTHS_MM
 from . import augment as ag
 from .base import Candidate, command_velocity, motion_events, scan_refine
 
@@ -154,9 +161,12 @@ def _detect_axis(ctx, a):
         cand.not_checked = ("the training trace has no motion start or stop with samples both in and "
                             "after the 40 ms window that follows it")
     if cand.detected:
-        cand.params["v_s_mm_s"] = _best_vs(ctx, a)
+        cand.params["v_s_mm_s"] = _best_vs(ctx, a, ctx.recipe)
         cand.recipe = ag.add_stribeck(ctx.recipe, a, cand.params["v_s_mm_s"])
     cands.append(cand)
+    fr = ag.friction_path(ctx.recipe.inputs, a)
+    if cand.detected and fr is not None and ctx.recipe.inputs[fr].kind == "friction":
+        cands.append(_play_law_candidate(ctx, a, cand))
 
     me = np.array(means_even)
     t_even = _t(me)
@@ -221,9 +231,29 @@ def _t(x):
     return float(np.mean(x) / (sd / np.sqrt(x.size))) if sd > 0 else 0.0
 
 
-def _best_vs(ctx, a):
-    """Stribeck velocity (mm/s) minimising the LS objective with the poles fixed."""
-    vt = ctx.recipe.v_tilde.get(a, 0.1)
+def _play_law_candidate(ctx, a, sat_cand):
+    """The Stribeck candidate of a sat-law axis in the play law: the play's width is the one of
+    ``PLAY_WIDTHS_MM`` (the structure choice's) whose quick refit without the Stribeck term has
+    the lowest LS objective, then v_s as for the sat law; the play law alone is the reference."""
+    def J(b):
+        return ag.fit_objective(ag.to_play_law(ctx.recipe, a, b), ctx.train, search="local",
+                                maxiter=10, refine=False)
+
+    b = min(PLAY_WIDTHS_MM, key=J)
+    law = ag.to_play_law(ctx.recipe, a, b)
+    vs = _best_vs(ctx, a, law)
+    cand = Candidate("stribeck", a, sat_cand.statistic, sat_cand.threshold,
+                     params={"v_s_mm_s": vs, "law": "play", "width_mm": b}, evidence=dict(sat_cand.evidence),
+                     note=sat_cand.note + "; tried in the play friction law (presliding), against the play "
+                                          "law without the Stribeck term")
+    cand.recipe, cand.reference = ag.add_stribeck(law, a, vs), law
+    return cand
+
+
+def _best_vs(ctx, a, recipe):
+    """Stribeck velocity (mm/s) minimising the LS objective of ``recipe`` with its Stribeck term
+    (poles in a local window)."""
+    vt = recipe.v_tilde.get(a, 0.1)
     vmax = max(float(np.max(np.abs(command_velocity(r.axes[a].cmd, ctx.Ts)))) for r in ctx.res)
     lo, hi = max(2 * vt, 1e-3 * vmax), 0.2 * vmax
     if not hi > lo:
@@ -231,7 +261,7 @@ def _best_vs(ctx, a):
     xs = np.linspace(np.log10(lo), np.log10(hi), 7)
 
     def J(lx):
-        return ag.fit_objective(ag.add_stribeck(ctx.recipe, a, 10 ** lx), ctx.train, search="local",
+        return ag.fit_objective(ag.add_stribeck(recipe, a, 10 ** lx), ctx.train, search="local",
                                 maxiter=10, refine=False)
 
     best, _ = scan_refine(J, xs)

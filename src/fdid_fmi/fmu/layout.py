@@ -167,8 +167,8 @@ def build_layout(model):
         ps = [ins[i] for i in fric if ins[i].axis == a]
         level0.append(float(ps[0].params.get("level", 1.0)) if ps else 0.0)
         vt0.append(float(ps[0].params["v_tilde"]) if ps else 1.0)
-    uses_libm = any(p.kind == "feature" and p.params.get("function") in ("stribeck", "sin_position",
-                                                                          "cos_position")
+    uses_libm = any(p.kind == "feature" and p.params.get("function") in ("stribeck", "play_stribeck",
+                                                                          "sin_position", "cos_position")
                     for p in ins)
 
     deps = _dependencies(m, axes, cmd, pos, vel, fric, fvo)

@@ -123,8 +123,19 @@ static double fric_vtilde(const FdidState *S, int j) {
     return S->vtilde[S->M->inputs[S->M->fric_input[j]].axis];
 }
 
+/* model.has_play_state: a feature with a play operator's state h */
 static int is_play(const FdidInput *in) {
-    return in->kind == FDID_IN_FEATURE && in->function == FDID_F_PLAY;
+    return in->kind == FDID_IN_FEATURE
+        && (in->function == FDID_F_PLAY || in->function == FDID_F_PLAY_STRIBECK);
+}
+
+static double sign_of(double v) { return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0); }
+
+/* the play's value: exactly +-1 once slid through (h is then x_prev -+ b to the bit) */
+static double play_value(const FdidInput *in, double x_prev, double h) {
+    if (h <= x_prev - in->width_mm) return 1.0;
+    if (h >= x_prev + in->width_mm) return -1.0;
+    return (x_prev - h) / in->width_mm;
 }
 
 /* simulate.feature_value; h: the play operator's state of this input */
@@ -132,11 +143,13 @@ static double feature_value(const FdidInput *in, double v_prev, double x_cmd, do
                             double h) {
     double s;
     switch (in->function) {
-    case FDID_F_PLAY: /* exactly +-1 once slid through: h is then x_prev -+ b to the bit */
-        if (h <= x_prev - in->width_mm) return 1.0;
-        if (h >= x_prev + in->width_mm) return -1.0;
-        return (x_prev - h) / in->width_mm;
+    case FDID_F_PLAY:
+        return play_value(in, x_prev, h);
 #if FDID_USE_LIBM
+    case FDID_F_PLAY_STRIBECK: {
+        double q = v_prev / in->v_s;
+        return play_value(in, x_prev, h) * exp(-(q * q));
+    }
     case FDID_F_SIN_POSITION:
     case FDID_F_COS_POSITION: {
         double x = in->source_position ? x_prev : x_cmd;
@@ -287,9 +300,15 @@ void fdid_initialize(FdidState *S) {
     for (i = 0; i < m; i++) {
         const FdidInput *in = &M->inputs[i];
         if (in->kind == FDID_IN_EXTERNAL) u0[i] = S->ext[i];
-        else if (is_play(in)) /* a steady ramp has slid through the play: +-1, at rest 0 */
-            u0[i] = S->v0[in->axis] > 0.0 ? 1.0 : (S->v0[in->axis] < 0.0 ? -1.0 : 0.0);
-        else if (in->kind == FDID_IN_FEATURE)
+        else if (is_play(in)) { /* a steady ramp has slid through the play: +-1, at rest 0 */
+            u0[i] = sign_of(S->v0[in->axis]);
+#if FDID_USE_LIBM
+            if (in->function == FDID_F_PLAY_STRIBECK) {
+                double q = S->v0[in->axis] / in->v_s;
+                u0[i] *= exp(-(q * q));
+            }
+#endif
+        } else if (in->kind == FDID_IN_FEATURE)
             u0[i] = feature_value(in, S->v0[in->axis], S->cmd[in->axis], S->cmd[in->axis], 0.0);
     }
     /* xi = S u0 - S2 du */
@@ -306,7 +325,8 @@ void fdid_initialize(FdidState *S) {
     }
     for (i = 0; i < m; i++)
         if (is_play(&M->inputs[i]))
-            S->hold[i] = S->x_prev[M->inputs[i].axis] - u0[i] * M->inputs[i].width_mm;
+            S->hold[i] = S->x_prev[M->inputs[i].axis]
+                         - sign_of(S->v0[M->inputs[i].axis]) * M->inputs[i].width_mm;
     S->f.steps = 0;
     S->f.init_dirty = 0;
     S->f.out_dirty = 1;

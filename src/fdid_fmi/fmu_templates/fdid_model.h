@@ -25,7 +25,7 @@
  * (x[k] - x[k-1]) / Ts of its position output when the model has none.
  *
  * C99, no global mutable state: every instance owns its FdidState. libm is used only when
- * FDID_USE_LIBM is 1 (models with sin/cos/stribeck feature inputs), see model_data.h.
+ * FDID_USE_LIBM is 1 (models with sin/cos/stribeck/play_stribeck feature inputs), see model_data.h.
  */
 #ifndef FDID_MODEL_H
 #define FDID_MODEL_H
@@ -38,7 +38,7 @@
 enum { FDID_IN_COMMAND = 0, FDID_IN_EXTERNAL = 1, FDID_IN_FRICTION = 2, FDID_IN_FEATURE = 3 };
 /* feature functions (model.FEATURE_FUNCTIONS) */
 enum { FDID_F_SAT = 0, FDID_F_ABS_SAT = 1, FDID_F_STRIBECK = 2, FDID_F_SIN_POSITION = 3,
-       FDID_F_COS_POSITION = 4, FDID_F_PLAY = 5 };
+       FDID_F_COS_POSITION = 4, FDID_F_PLAY = 5, FDID_F_PLAY_STRIBECK = 6 };
 /* FMI variable types */
 enum { FDID_T_REAL = 0, FDID_T_BOOLEAN = 1 };
 /* roles of FMI variables; `index` is an axis index or a model port index as noted */
@@ -63,9 +63,9 @@ typedef struct {
     int function;         /* feature: FDID_F_* */
     int source_position;  /* feature sin/cos: 1 = measured-position source, 0 = command */
     double v_tilde;       /* feature sat/abs_sat/stribeck: transition velocity, mm/s */
-    double v_s;           /* feature stribeck: Stribeck velocity, mm/s */
+    double v_s;           /* feature stribeck / play_stribeck: Stribeck velocity, mm/s */
     double period_mm;     /* feature sin/cos: spatial period, mm */
-    double width_mm;      /* feature play: half-width b of the play operator, mm */
+    double width_mm;      /* feature play / play_stribeck: half-width b of the play operator, mm */
 } FdidInput;
 
 typedef struct {

@@ -325,6 +325,9 @@ def feature_signal(params, vel, pos, direction=0.0):
     f = params["function"]
     if f == "play":
         return play_signal(pos, params["width_mm"], direction)
+    if f == "play_stribeck":        # the play and the velocity of the previous step, as simulated
+        vp = np.concatenate([vel[:1], vel[:-1]])
+        return play_signal(pos, params["width_mm"], direction) * np.exp(-(vp / params["v_s"]) ** 2)
     if f in ("sin_position", "cos_position"):
         arg = 2 * np.pi * pos / params["period_mm"]
         return np.sin(arg) if f == "sin_position" else np.cos(arg)
