@@ -80,7 +80,7 @@ def _check_outputs(args):
 
 def run(args):
     from ..diagnose import diagnose
-    from ..diagnose.reporting import diagnosis_report, fmu_check
+    from ..diagnose.reporting import diagnosis_report, fmt_params, fmu_check
     _check_outputs(args)
     if not 1 <= args.max_steps <= 20:
         raise InputError(f"--max-steps must be in 1 .. 20, got {args.max_steps}", column="--max-steps")
@@ -112,6 +112,8 @@ def run(args):
                     progress=lambda m: print(f"  {m}", file=sys.stderr))
     fmu = fmu_check(diag) if args.fmu else None
     print(f"effects added: {[e['kind'] for e in diag.effects_added] or 'none'}")
+    for e in diag.effects_added:    # what each is (a Stribeck term may have changed the friction law)
+        print(f"  {e['kind']} on axis {e['axis']}: {fmt_params(e)}")
     for ax, d in diag.axes.items():     # combined per-axis model: the findings of each block
         det = sorted({c["kind"] for r in d.rounds for c in r["candidates"] if c["detected"]})
         print(f"  axis {ax}: detected {', '.join(det) or 'nothing'}; "

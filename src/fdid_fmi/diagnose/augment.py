@@ -646,7 +646,12 @@ def describe_fitted(model: DriveModel, effect: dict) -> dict:
 
 def _ratio_to_friction(model, axis, name, nums):
     """Ratio of input ``name``'s numerator to the friction path's, at the friction path's lowest
-    nonzero term (``nums``: (output, input) -> b)."""
+    nonzero term at or above s^1 (``nums``: (output, input) -> b; the d.c. term only where the path
+    has no other). With integral action the path starts at s^1 (Eqn 4.10). Without it the d.c.
+    term is the static force-to-error gain, which a velocity-loop integrator in the drive makes
+    zero, and a force acting only around starts and stops leaves it to noise: plant2's
+    Stribeck axis from a CSV without velocity (rigid-noI): d.c. ratio -0.78, s^1 ratio 0.91,
+    true 1.25."""
     fr = friction_path(model.inputs, axis)
     if fr is None:
         return None
@@ -658,7 +663,8 @@ def _ratio_to_friction(model, axis, name, nums):
         bs = np.asarray(nums.get((o, name), []))
         if bs.size != bf.size:
             continue
-        nz = np.flatnonzero(np.abs(bf) > 0)
+        nz = np.flatnonzero(np.abs(bf[:-1]) > 0)
+        nz = nz if nz.size else np.flatnonzero(np.abs(bf) > 0)
         if nz.size:
             l = nz[-1]
             return float(bs[l] / bf[l])

@@ -46,7 +46,8 @@ def fmu_check(diag, workdir=None, fmi_version=2):
     return out
 
 
-def _fmt_params(e):
+def fmt_params(e):
+    """An effect's fitted parameters as ``name=value, ...`` (what the report and the console show)."""
     skip = {"kind", "axis", "input", "inputs", "output"}
     parts = []
     for k, v in e.items():
@@ -145,7 +146,7 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
         "wall time": f"{diag.wall_time_s:.1f} s"})
     s = diag.settings
     eff = diag.effects_added
-    summary = ("Effects added: " + ("; ".join(f"{e['kind']} ({_fmt_params(e)})" for e in eff)
+    summary = ("Effects added: " + ("; ".join(f"{e['kind']} ({fmt_params(e)})" for e in eff)
                                     if eff else "none (no candidate met the keep criterion)") + ".")
     rep.add_text(summary, heading="Summary")
     for note in diag.notes:     # what the data cannot show or only suggest (limits.py)
@@ -170,7 +171,7 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
     for i, (st, owner, k) in enumerate(_steps(diag), 1):
         e = st.effect
         rep.add_heading(f"Step {i}: {e['kind']} on axis {e['axis']}")
-        rep.add_text(f"Fitted parameters: {_fmt_params(e)}")
+        rep.add_text(f"Fitted parameters: {fmt_params(e)}")
         rep.add_table(f"step{i}_errors", error_rows(st.before, st.after),
                       caption=f"error before / after step {i}")
         fig, data = _residual_figure(f"step {i}: {e['kind']}", st.residual_before, st.residual_after)
