@@ -99,7 +99,10 @@ def test_stribeck_on_plant2_is_named_in_the_play_law(tmp_path, capsys):
     (e,) = d["effects_added"]
     assert e["kind"] == "stribeck" and e["law"] == "play" and 0.5 <= e["ratio_to_coulomb"] <= 2.0
     assert "stribeck on axis x: v_s_mm_s=" in text and "law=play" in text
+    assert "the friction law of axis x is now the play of half-width 1 um" in text
     assert d["after"]["val"]["x"]["rms_um"] <= 0.8 * d["before"]["val"]["x"]["rms_um"]
+    kept = [t for r in d["rounds"] for t in r["trials"] if t["kept"]]     # both Stribeck candidates tried
+    assert [(t["axis"], t["params"].get("law")) for t in kept] == [("x", "play")]
     m = load_model(tmp_path / "m2.json")
     fns = [p.params["function"] for p in m.inputs if p.kind == "feature"]
     assert fns == ["play", "play_stribeck"] and not any(p.kind == "friction" for p in m.inputs)

@@ -313,6 +313,13 @@ def test_random_valid_names_export_and_load(tmp_path_factory, name, desc):
     (lambda d: d["inputs"].append({"name": "x_ps", "unit": "1", "kind": "feature", "axis": "x",
                                    "params": {"function": "play_stribeck", "width_mm": 0.01, "v_s": 2.0,
                                               "source": "command"}}), "x_ps.source"),
+    # a number the function does not use still reaches the C model data: checked like the others
+    (lambda d: d["inputs"].append({"name": "x_play", "unit": "1", "kind": "feature", "axis": "x",
+                                   "params": {"function": "play", "width_mm": 0.01, "v_tilde": "abc",
+                                              "source": "position"}}), "x_play.v_tilde"),
+    (lambda d: d["inputs"].append({"name": "x_play", "unit": "1", "kind": "feature", "axis": "x",
+                                   "params": {"function": "play", "width_mm": 0.01, "period_mm": float("nan"),
+                                              "source": "position"}}), "x_play.period_mm"),
     (lambda d: d["inputs"][1]["params"].update(level=float("nan")), "level"),
     (lambda d: d["inputs"][1]["params"].update(level=float("inf")), "level"),
     (lambda d: d["inputs"][1]["params"].update(level="x"), "level"),

@@ -47,17 +47,14 @@ INPUT_KINDS = ("command", "external", "friction", "feature")
 OUTPUT_KINDS = ("position", "error", "velocity", "tool_position", "acceleration", "other")
 FEATURE_FUNCTIONS = ("sat", "abs_sat", "stribeck", "sin_position", "cos_position", "play", "play_stribeck")
 PLAY_FUNCTIONS = ("play", "play_stribeck")      # features with a play operator's state
+LIBM_FUNCTIONS = ("stribeck", "play_stribeck", "sin_position", "cos_position")   # exp / sin / cos
+FEATURE_NUMBERS = {"v_tilde": "mm/s", "v_s": "mm/s", "period_mm": "mm", "width_mm": "mm"}
 
 
 def is_play(inp):
     """True for a play (presliding friction) feature input: a :class:`Port` of a model or an input
     of an identification structure (both carry ``kind`` and ``params``)."""
     return inp.kind == "feature" and inp.params.get("function") == "play"
-
-
-def has_play_state(inp):
-    """True for a feature input that carries a play operator's state (``play``, ``play_stribeck``)."""
-    return inp.kind == "feature" and inp.params.get("function") in PLAY_FUNCTIONS
 
 
 def delayed_input(kind, params):
@@ -644,6 +641,9 @@ def check_simulation_numbers(model):
                                  column=f"{prt.name}.level")
         elif prt.kind == "feature":
             fn = prt.params.get("function")
+            for key, unit in FEATURE_NUMBERS.items():   # every one given reaches the C model data
+                if key in prt.params:
+                    _positive(prt, key, unit)
             if fn in ("sat", "abs_sat", "stribeck"):
                 _positive(prt, "v_tilde", "mm/s")
             if fn in ("stribeck", "play_stribeck"):

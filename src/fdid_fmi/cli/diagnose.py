@@ -114,6 +114,11 @@ def run(args):
     print(f"effects added: {[e['kind'] for e in diag.effects_added] or 'none'}")
     for e in diag.effects_added:    # what each is (a Stribeck term may have changed the friction law)
         print(f"  {e['kind']} on axis {e['axis']}: {fmt_params(e)}")
+        if e.get("law") == "play":
+            print(f"    the friction law of axis {e['axis']} is now the play of half-width "
+                  f"{1e3 * e['width_mm']:g} um (presliding) in place of sat(v / v_tilde): the model and "
+                  f"its FMU have no {e['axis']}_friction_level, {e['axis']}_v_tilde or "
+                  f"{e['axis']}_friction_on parameter any more")
     for ax, d in diag.axes.items():     # combined per-axis model: the findings of each block
         det = sorted({c["kind"] for r in d.rounds for c in r["candidates"] if c["detected"]})
         print(f"  axis {ax}: detected {', '.join(det) or 'nothing'}; "

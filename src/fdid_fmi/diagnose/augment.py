@@ -493,17 +493,22 @@ def add_stribeck(recipe, axis, v_s):
     fr = _friction_input(recipe, axis)
     if fr is not None and is_play(fr):
         b = float(fr.params["width_mm"])
-        return add_feature(recipe, axis, "play_stribeck", {"width_mm": b, "v_s": float(v_s), "source": "position"},
-                           "stribeck", {"v_s_mm_s": float(v_s), "width_mm": b}, name=f"{axis}_stribeck")
-    vt = recipe.v_tilde.get(axis, max(1e-3, v_s / 10))
-    return add_feature(recipe, axis, "stribeck", {"v_tilde": vt, "v_s": float(v_s), "source": "position"},
-                       "stribeck", {"v_s_mm_s": float(v_s), "v_tilde_mm_s": vt}, name=f"{axis}_stribeck")
+        r = add_feature(recipe, axis, "play_stribeck", {"width_mm": b, "v_s": float(v_s), "source": "position"},
+                        "stribeck", {"v_s_mm_s": float(v_s), "width_mm": b}, name=f"{axis}_stribeck")
+    else:
+        vt = recipe.v_tilde.get(axis, max(1e-3, v_s / 10))
+        r = add_feature(recipe, axis, "stribeck", {"v_tilde": vt, "v_s": float(v_s), "source": "position"},
+                        "stribeck", {"v_s_mm_s": float(v_s), "v_tilde_mm_s": vt}, name=f"{axis}_stribeck")
+    r.effects[-1]["input"] = r.inputs[-1].name      # its port (a name taken by another input is suffixed)
+    return r
 
 
 def add_asymmetry(recipe, axis):
     vt = recipe.v_tilde.get(axis, 1.0)
-    return add_feature(recipe, axis, "abs_sat", {"v_tilde": vt, "source": "position"},
-                       "asymmetric_friction", {"v_tilde_mm_s": vt}, name=f"{axis}_asym")
+    r = add_feature(recipe, axis, "abs_sat", {"v_tilde": vt, "source": "position"},
+                    "asymmetric_friction", {"v_tilde_mm_s": vt}, name=f"{axis}_asym")
+    r.effects[-1]["input"] = r.inputs[-1].name
+    return r
 
 
 def add_periodic(recipe, axis, period_mm):
@@ -626,7 +631,8 @@ def describe_fitted(model: DriveModel, effect: dict) -> dict:
             w, z = min(pairs, key=lambda c: abs(np.log(c[0] / f0)))
             e["frequency_hz"], e["damping"] = float(w), float(z)
     if e["kind"] in ("stribeck", "asymmetric_friction"):
-        name = {"stribeck": f"{e['axis']}_stribeck", "asymmetric_friction": f"{e['axis']}_asym"}[e["kind"]]
+        default = {"stribeck": f"{e['axis']}_stribeck", "asymmetric_friction": f"{e['axis']}_asym"}[e["kind"]]
+        name = e.get("input", default)      # effects written before the input was recorded: the default
         ratio = _ratio_to_friction(model, e["axis"], name, nums)
         if ratio is not None:
             e["ratio_to_coulomb"] = ratio

@@ -52,6 +52,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..identify.choose_structure import PLAY_WIDTHS_MM
+from ..model import is_play
 from . import augment as ag
 from .base import Candidate, command_velocity, motion_events, scan_refine
 
@@ -165,7 +166,8 @@ def _detect_axis(ctx, a):
         cand.recipe = ag.add_stribeck(ctx.recipe, a, cand.params["v_s_mm_s"])
     cands.append(cand)
     fr = ag.friction_path(ctx.recipe.inputs, a)
-    if cand.detected and fr is not None and ctx.recipe.inputs[fr].kind == "friction":
+    has_play = any(s.axis == a and is_play(s) for s in ctx.recipe.inputs)
+    if cand.detected and fr is not None and ctx.recipe.inputs[fr].kind == "friction" and not has_play:
         cands.append(_play_law_candidate(ctx, a, cand))
 
     me = np.array(means_even)
@@ -178,7 +180,7 @@ def _detect_axis(ctx, a):
     if cand.detected and ctx.model.input_index("friction", a) is not None:
         cand.recipe = ag.add_asymmetry(ctx.recipe, a)
     elif cand.detected:
-        cand.note += " (the model has no friction input: not tried)"
+        cand.note += " (the axis has no sat(v / v_tilde) friction input: not tried)"
     cands.append(cand)
 
     if have_tool:

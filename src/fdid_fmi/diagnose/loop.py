@@ -535,7 +535,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
                 m = ag.fit(c.recipe, vel_train, search=c.search, maxiter=maxiter,
                                refine=c.search != "locked")
             except InputError as exc:
-                rnd["trials"].append({"kind": c.kind, "params": c.params, "error": str(exc)})
+                rnd["trials"].append({"kind": c.kind, "axis": c.axis, "params": c.params, "error": str(exc)})
                 continue
             # a locked refit keeps the current poles and, composed with the current model, its
             # predictions of the channels the effect does not feed: its reference is then the
@@ -549,12 +549,15 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
             rtr, rva = (tab_cur["train"], tab_cur["val"]) if kept_base else (ref_train, ref_val)
             if tab_plus is not None and c.kind in ORDER_RIVALS:   # and one more real pole
                 rtr, rva = _better(rtr, tab_plus["train"]), _better(rva, tab_plus["val"])
+            # candidates are ranked against one baseline; a reference only decides the keeping
+            # (a play-law Stribeck's gain over the play law alone is no measure against the others)
+            rank = max(_gain(rtr, tt).values())
             if c.reference is not None:     # the effect must also beat its reference structure
                 try:
                     mr = ag.fit(c.reference, vel_train, search=c.search, maxiter=maxiter,
                                 refine=c.search != "locked")
                 except InputError as exc:   # then it cannot be compared: not kept
-                    rnd["trials"].append({"kind": c.kind, "params": c.params,
+                    rnd["trials"].append({"kind": c.kind, "axis": c.axis, "params": c.params,
                                           "error": f"reference refit: {exc}"})
                     continue
                 if kept_base:
@@ -565,8 +568,8 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
             keep = max(g_val.values()) >= min_gain and min(g_val.values()) >= -max_loss
             effect = ag.describe_fitted(m, m.effects[-1])
             why = implausible(effect)
-            trials.append((max(g_train.values()), c, m, rt, rv, keep and not why))
-            rnd["trials"].append({"kind": c.kind, "params": c.params, "fitted": effect,
+            trials.append((rank, c, m, rt, rv, keep and not why))
+            rnd["trials"].append({"kind": c.kind, "axis": c.axis, "params": c.params, "fitted": effect,
                                   "gain_train": g_train, "gain_val": g_val, "kept": False,
                                   "criterion_met": bool(keep), "implausible": why})
         trials.sort(key=lambda x: -x[0])
@@ -576,7 +579,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
             break
         _, c, m, rt, rv, _ = chosen
         for tr_ in rnd["trials"]:
-            if tr_.get("kind") == c.kind and tr_.get("params") == c.params:
+            if (tr_.get("kind"), tr_.get("axis"), tr_.get("params")) == (c.kind, c.axis, c.params):
                 tr_["kept"] = True
         effect = ag.describe_fitted(m, m.effects[-1])
         effect.update({k: v for k, v in c.params.items() if k not in effect})

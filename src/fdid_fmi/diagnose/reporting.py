@@ -185,7 +185,8 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
     for rnd in diag.rounds:
         rows = []
         for c in rnd["candidates"]:
-            trial = next((t for t in rnd["trials"] if t["kind"] == c["kind"] and t["params"] == c["params"]), {})
+            trial = next((t for t in rnd["trials"] if (t["kind"], t.get("axis"), t["params"])
+                          == (c["kind"], c["axis"], c["params"])), {})
             gv = trial.get("gain_val", {})
             rows.append({"round": rnd["round"], "kind": c["kind"], "axis": c["axis"],
                          "statistic": c["statistic"], "threshold": c["threshold"],

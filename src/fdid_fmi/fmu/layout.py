@@ -31,7 +31,7 @@ import numpy as np
 from scipy import sparse
 
 from ..errors import InputError
-from ..model import FEATURE_FUNCTIONS, DriveModel, QuasiStaticModel, delayed_input
+from ..model import FEATURE_FUNCTIONS, LIBM_FUNCTIONS, DriveModel, QuasiStaticModel, delayed_input
 
 # FMI unit name and base-unit exponents/factor (to SI) for the canonical units of fdid_fmi.units
 FMI_UNITS = {
@@ -167,9 +167,7 @@ def build_layout(model):
         ps = [ins[i] for i in fric if ins[i].axis == a]
         level0.append(float(ps[0].params.get("level", 1.0)) if ps else 0.0)
         vt0.append(float(ps[0].params["v_tilde"]) if ps else 1.0)
-    uses_libm = any(p.kind == "feature" and p.params.get("function") in ("stribeck", "play_stribeck",
-                                                                          "sin_position", "cos_position")
-                    for p in ins)
+    uses_libm = any(p.kind == "feature" and p.params.get("function") in LIBM_FUNCTIONS for p in ins)
 
     deps = _dependencies(m, axes, cmd, pos, vel, fric, fvo)
 

@@ -123,7 +123,7 @@ static double fric_vtilde(const FdidState *S, int j) {
     return S->vtilde[S->M->inputs[S->M->fric_input[j]].axis];
 }
 
-/* model.has_play_state: a feature with a play operator's state h */
+/* a feature with a play operator's state h (model.PLAY_FUNCTIONS) */
 static int is_play(const FdidInput *in) {
     return in->kind == FDID_IN_FEATURE
         && (in->function == FDID_F_PLAY || in->function == FDID_F_PLAY_STRIBECK);
