@@ -17,6 +17,7 @@ from fdid_fmi.diagnose import diagnose
 from fdid_fmi.diagnose.limits import NoteKind
 from fdid_fmi.identify import identify_siso
 from fdid_fmi.identify.search import METHODS, run_search
+from fdid_fmi.model import DriveModel
 from fdid_fmi.trace import Trace
 
 
@@ -50,12 +51,19 @@ def test_one_pole_short_model_gets_the_order_note():
     assert len(notes) == 1 and notes[0].axis == "x"
     # measured: one more real pole lowers the held-out RMS by 43 %
     assert notes[0].statistic >= 0.2
-    assert "order is too low" in notes[0].text
+    assert "order is too low" in notes[0].text and "identify with the default structure choice" in notes[0].text
     check = d.rounds[0]["order_check"]
     assert check["criterion_met"] and check["gain_val"]["x"] == notes[0].statistic
     # the note does not change the model, and nothing else was named
     assert d.effects_added == [] and d.final is model
     assert d.to_json()["notes"][0]["kind"] == "order_too_low"
+    # a structure fdid identify chose from the data: the note does not advise choosing it again
+    chosen = DriveModel.from_dict(model.to_dict())
+    chosen.identification["structure_choice"] = {"note": "as fdid identify records it"}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        (note,) = [n for n in diagnose(chosen, tr, va, maxiter=10).notes if n.kind == NoteKind.ORDER_TOO_LOW]
+    assert "chosen on the training data" in note.text and "default structure choice" not in note.text
 
 
 def test_add_real_pole_raises_the_order_by_one(small_recipe):

@@ -190,18 +190,23 @@ def data_limits(axes, tool_axes, concentration, kept, lost_motion=None, play_mm=
     return notes
 
 
-def order_too_low(axis, gain, min_gain):
+def order_too_low(axis, gain, min_gain, chosen=False):
     """The note for a first-round order check that met the keep criterion (:mod:`.loop`).
 
     gain : the largest relative held-out RMS reduction of the refit with one more real pole
     (against the better of the model and its refit with the same order); min_gain : the keep
-    criterion's.
+    criterion's; chosen : the model's structure was chosen from its training data (``fdid
+    identify``'s default), so the advice is not to choose it again.
     """
+    advice = ("its structure was chosen on the training data, where no larger one won by the "
+              "parsimony margin: record training moves that excite what the held-out data show, "
+              "or pin a higher order (fdid identify --method mimo --n-real/--n-complex)" if chosen else
+              "identify with the default structure choice (fdid identify without structure flags) "
+              "or a higher order")
     return Note(NoteKind.ORDER_TOO_LOW, axis, "order",
                 f"axis {axis}: one more real pole lowers the held-out RMS by {100 * gain:.1f} % "
                 f"(criterion {100 * min_gain:g} %): the model's order is too low for these data; "
-                "identify with the default structure choice (fdid identify without structure "
-                "flags) or a higher order", gain, min_gain)
+                f"{advice}", gain, min_gain)
 
 
 def not_checked(candidates):
