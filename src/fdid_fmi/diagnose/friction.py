@@ -165,10 +165,9 @@ def _detect_axis(ctx, a):
         cand.params["v_s_mm_s"] = _best_vs(ctx, a, ctx.recipe)
         cand.recipe = ag.add_stribeck(ctx.recipe, a, cand.params["v_s_mm_s"])
     cands.append(cand)
-    fr = ag.friction_path(ctx.recipe.inputs, a)
-    has_play = any(s.axis == a and is_play(s) for s in ctx.recipe.inputs)
-    if cand.detected and fr is not None and ctx.recipe.inputs[fr].kind == "friction" and not has_play:
-        cands.append(_play_law_candidate(ctx, a, cand))
+    own = [s for s in ctx.recipe.inputs if s.axis == a]
+    if cand.detected and any(s.kind == "friction" for s in own) and not any(map(is_play, own)):
+        cands.append(_play_law_candidate(ctx, a, cand))     # a sat-law axis without a play
 
     me = np.array(means_even)
     t_even = _t(me)
