@@ -57,13 +57,25 @@ def test_abbreviated_long_option_is_one_error_line(capsys, tmp_path, argv, unkno
     assert list(tmp_path.iterdir()) == []          # nothing ran, nothing written
 
 
+@pytest.mark.parametrize("argv, prog", [
+    (["--vers"], "fdid"),                               # before: "a COMMAND is required"
+    (["identify", "t.csv", "--bogus"], "fdid identify"),  # before: "see fdid --help"
+    (["fleet", "run", "m.toml", "--bogus"], "fdid fleet run"),
+])
+def test_an_unknown_option_is_named_where_it_was_given(capsys, argv, prog):
+    assert _exit_code(argv) == 2
+    (line,) = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert line == f"{prog}: error: unrecognized arguments: {argv[-1]} (see {prog} --help)"
+
+
 def test_abbreviation_refused_by_the_installed_command(tmp_path):
     r = subprocess.run([sys.executable, "-m", "fdid_fmi.cli", "identify", str(tmp_path / "t.csv"),
                         "--meth", "pole-search", "-o", str(tmp_path / "m.json")],
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and r.stdout == ""
     assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
-    assert r.stderr.startswith("fdid: error: unrecognized arguments: --meth pole-search")
+    assert r.stderr.startswith("fdid identify: error: unrecognized arguments: --meth pole-search")
+    assert r.stderr.rstrip().endswith("(see fdid identify --help)")        # the command's options
 
 
 def test_full_option_names_still_parse():

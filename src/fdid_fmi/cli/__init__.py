@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
+import itertools
 import sys
 import traceback
 
@@ -68,7 +69,32 @@ def build_parser():
                             help="print the Python traceback of an error (for bug reports)")
         except argparse.ArgumentError:
             pass  # the command defines its own --debug
+    parser.commands = sub.choices
     return parser
+
+
+TOP_OPTIONS = ("--version", "--debug", "-h", "--help")
+
+
+def _parse(parser, argv):
+    """``parser.parse_args`` whose unknown options are named where they were given: before the
+    command (``fdid --vers``: not "a command is required"), or after it, with that command's help
+    to look up (``see fdid identify --help``)."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    lead = list(itertools.takewhile(lambda a: a.startswith("-"), argv))
+    unknown = [a for a in lead if a not in TOP_OPTIONS]
+    if unknown:
+        parser.error(f"unrecognized arguments: {' '.join(unknown)}")
+    args, extra = parser.parse_known_args(argv)
+    if extra:
+        p = parser.commands[args.command]
+        while True:             # the action's parser of a nested command (fdid fleet run)
+            nested = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]
+            if not nested or getattr(args, nested[0].dest, None) not in nested[0].choices:
+                break
+            p = nested[0].choices[getattr(args, nested[0].dest)]
+        p.error(f"unrecognized arguments: {' '.join(extra)}")
+    return args
 
 
 @contextlib.contextmanager
@@ -112,7 +138,7 @@ def main(argv=None):
         except (AttributeError, ValueError):
             pass
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = _parse(parser, argv)
     debug = bool(getattr(args, "debug", False))
     cmd = f"fdid {args.command}"
     try:
