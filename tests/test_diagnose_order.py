@@ -64,6 +64,11 @@ def test_one_pole_short_model_gets_the_order_note():
         warnings.simplefilter("ignore")
         (note,) = [n for n in diagnose(chosen, tr, va, maxiter=10).notes if n.kind == NoteKind.ORDER_TOO_LOW]
     assert "chosen on the training data" in note.text and "default structure choice" not in note.text
+    # ... and a model diagnosis wrote from it still knows (helper-39: it was lost on the refit)
+    r = ag.recipe_from_model(chosen)
+    refit = ag.fit(r, tr, search="local", maxiter=2, refine=False)
+    assert r.structure_chosen and ag.recipe_from_model(refit).structure_chosen
+    assert not ag.recipe_from_model(model).structure_chosen
 
 
 def test_add_real_pole_raises_the_order_by_one(small_recipe):

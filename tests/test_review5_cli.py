@@ -57,15 +57,23 @@ def test_abbreviated_long_option_is_one_error_line(capsys, tmp_path, argv, unkno
     assert list(tmp_path.iterdir()) == []          # nothing ran, nothing written
 
 
-@pytest.mark.parametrize("argv, prog", [
-    (["--vers"], "fdid"),                               # before: "a COMMAND is required"
-    (["identify", "t.csv", "--bogus"], "fdid identify"),  # before: "see fdid --help"
-    (["fleet", "run", "m.toml", "--bogus"], "fdid fleet run"),
+@pytest.mark.parametrize("argv, prog, bad", [
+    (["--vers"], "fdid", "--vers; before the command fdid takes only"),   # was: "COMMAND is required"
+    (["--method", "mimo", "identify", "t.csv"], "fdid", "--method; before the command"),
+    (["identify", "t.csv", "--bogus"], "fdid identify", "--bogus"),   # was: "see fdid --help"
+    (["fleet", "run", "m.toml", "--bogus"], "fdid fleet run", "--bogus"),
+    (["fleet", "--bogus", "run", "m.toml"], "fdid fleet", "--bogus"),  # given to fleet, not to run
 ])
-def test_an_unknown_option_is_named_where_it_was_given(capsys, argv, prog):
+def test_an_unknown_option_is_named_where_it_was_given(capsys, argv, prog, bad):
     assert _exit_code(argv) == 2
     (line,) = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
-    assert line == f"{prog}: error: unrecognized arguments: {argv[-1]} (see {prog} --help)"
+    assert line.startswith(f"{prog}: error: unrecognized arguments: {bad}") and line.endswith(f"(see {prog} --help)")
+
+
+def test_help_and_debug_where_they_were_accepted():
+    assert _exit_code(["--bogus", "--help"]) == 0          # help still wins over an unknown option
+    a = build_parser().parse_args(["fleet", "run", "m.toml", "--debug"])     # after a nested command
+    assert a.debug is True
 
 
 def test_abbreviation_refused_by_the_installed_command(tmp_path):

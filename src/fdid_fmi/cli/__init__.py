@@ -63,7 +63,7 @@ def build_parser():
                 continue  # command not built yet
             raise
         mod.register(sub)
-    for sp in sub.choices.values():   # --debug also after the command name
+    for sp in _command_parsers(sub.choices.values()):    # --debug also after the command name
         try:
             sp.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                             help="print the Python traceback of an error (for bug reports)")
@@ -71,6 +71,20 @@ def build_parser():
             pass  # the command defines its own --debug
     parser.commands = sub.choices
     return parser
+
+
+def _nested(p):
+    """The sub-command action of parser ``p`` (``fdid fleet``'s ``run``), or None."""
+    return next((a for a in p._actions if isinstance(a, argparse._SubParsersAction)), None)
+
+
+def _command_parsers(parsers):
+    """The given command parsers and every nested one below them."""
+    for p in parsers:
+        yield p
+        act = _nested(p)
+        if act is not None:
+            yield from _command_parsers(act.choices.values())
 
 
 TOP_OPTIONS = ("--version", "--debug", "-h", "--help")
@@ -83,16 +97,16 @@ def _parse(parser, argv):
     argv = sys.argv[1:] if argv is None else list(argv)
     lead = list(itertools.takewhile(lambda a: a.startswith("-"), argv))
     unknown = [a for a in lead if a not in TOP_OPTIONS]
-    if unknown:
-        parser.error(f"unrecognized arguments: {' '.join(unknown)}")
+    if unknown and not {"-h", "--help", "--version"} & set(lead):     # help and version still win
+        parser.error(f"unrecognized arguments: {' '.join(unknown)}; before the command fdid takes "
+                     f"only {', '.join(TOP_OPTIONS)} (a command's options go after its name)")
     args, extra = parser.parse_known_args(argv)
     if extra:
-        p = parser.commands[args.command]
-        while True:             # the action's parser of a nested command (fdid fleet run)
-            nested = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]
-            if not nested or getattr(args, nested[0].dest, None) not in nested[0].choices:
-                break
-            p = nested[0].choices[getattr(args, nested[0].dest)]
+        p, rest = parser.commands[args.command], argv[argv.index(args.command) + 1:]
+        # the parser of a nested command (fdid fleet run) when the extras were given after its name
+        while (act := _nested(p)) is not None and (name := getattr(args, act.dest, None)) in rest \
+                and extra[0] in rest[rest.index(name) + 1:]:
+            p, rest = act.choices[name], rest[rest.index(name) + 1:]
         p.error(f"unrecognized arguments: {' '.join(extra)}")
     return args
 

@@ -77,6 +77,8 @@ class Recipe:
     new_pairs: list = field(default_factory=list)    # bounds [(lo_hz, hi_hz, zlo, zhi)] searched
     delays: dict = field(default_factory=dict)       # axis -> samples
     effects: list = field(default_factory=list)      # effect dicts added by diagnosis
+    structure_chosen: bool = False                   # its structure was chosen from data (fdid
+                                                     # identify's default), kept through refits
     reserved: set = field(default_factory=set)       # port names new inputs must not take (the
                                                      # other blocks of a combined per-axis model)
 
@@ -147,7 +149,8 @@ def recipe_from_model(model: DriveModel, reserved=()) -> Recipe:
                   locked_real_hz=list(rec.locked_real_hz),
                   locked_complex=[tuple(c) for c in rec.locked_complex], v_tilde=vt,
                   delays={a: int(d) for a, d in rec.diagnose.get("delays", {}).items()},
-                  effects=list(model.effects), reserved=set(reserved))
+                  effects=list(model.effects), reserved=set(reserved),
+                  structure_chosen=bool(rec.structure_choice or rec.diagnose.get("structure_chosen")))
 
 
 # ------------------------------------------------------------------------- structure
@@ -275,6 +278,8 @@ def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, r
         if d:
             model = add_command_delay(model, a, d)
     model.identification["diagnose"] = {"delays": {a: int(d) for a, d in recipe.delays.items() if d}}
+    if recipe.structure_chosen:     # a diagnosed model's notes still know how its structure came about
+        model.identification["diagnose"]["structure_chosen"] = True
     model.effects = copy.deepcopy(recipe.effects)
     return model
 

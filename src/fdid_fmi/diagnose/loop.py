@@ -527,8 +527,8 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
                     tab_plus = None
                 elif step == 0:
                     ch = max(g_val, key=g_val.get)
-                    chosen = bool((model.identification or {}).get("structure_choice"))
-                    order_notes.append(order_too_low(ch.split(".")[0], g_val[ch], min_gain, chosen))
+                    order_notes.append(order_too_low(ch.split(".")[0], g_val[ch], min_gain,
+                                                     recipe.structure_chosen))
         trials = []
         for c in detected:
             say(f"round {step + 1}: refit with {c.kind} {c.params}")
