@@ -218,6 +218,8 @@ def test_bad_option_values_give_one_line(capsys, files, tmp_path, opts, words):
     (["plan", "p.nc", "--model", "m.json", "--margin", "-3"], ["--margin", "[0, 1)"]),
     (["validate", "d.fmu", "t.csv", "--tolerance", "nan"], ["--tolerance", "> 0"]),
     (["align", "c.csv", "--window", "0", "-o", "a.csv"], ["--window", "> 0"]),
+    (["align", "c.csv", "--lowpass", "-3", "-o", "a.csv"], ["--lowpass", "> 0"]),     # helper-39: taken
+    (["align", "c.csv", "--lowpass", "nan", "-o", "a.csv"], ["--lowpass", "> 0"]),
     # an FMU with no binaries was exported as success; pythonfmu ignored --platforms
     (["export", "m.json", "--platforms", ","], ["--platforms", "no platform"]),
     (["export", "m.json", "--backend", "python", "--platforms", "win64"], ["--platforms", "--backend c"]),

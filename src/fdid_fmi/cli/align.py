@@ -46,7 +46,7 @@ def register(sub):
                    help="write every step's estimate and uncertainty as JSON (reusable by --orientation)")
     p.add_argument("--orientation", default=None, metavar="CALIB.json",
                    help="accelerometer orientations from a calibration run's --json (two axes moving)")
-    p.add_argument("--lowpass", type=float, default=10.0, metavar="HZ",
+    p.add_argument("--lowpass", type=finite_float("--lowpass", positive=True), default=10.0, metavar="HZ",
                    help="low-pass of the estimation signals, below the first tool-side mode (default 10)")
     p.add_argument("--window", type=finite_float("--window", positive=True), default=1.0, metavar="S",
                    help="window of the lag estimates for the clock drift (default 1 s)")
