@@ -49,6 +49,9 @@ FEATURE_FUNCTIONS = ("sat", "abs_sat", "stribeck", "sin_position", "cos_position
 PLAY_FUNCTIONS = ("play", "play_stribeck")      # features with a play operator's state
 LIBM_FUNCTIONS = ("stribeck", "play_stribeck", "sin_position", "cos_position")   # exp / sin / cos
 FEATURE_NUMBERS = {"v_tilde": "mm/s", "v_s": "mm/s", "period_mm": "mm", "width_mm": "mm"}
+FEATURE_NEEDS = {"sat": ("v_tilde",), "abs_sat": ("v_tilde",), "stribeck": ("v_tilde", "v_s"),
+                 "sin_position": ("period_mm",), "cos_position": ("period_mm",), "play": ("width_mm",),
+                 "play_stribeck": ("width_mm", "v_s")}      # the numbers each function reads
 
 
 def is_play(inp):
@@ -641,20 +644,15 @@ def check_simulation_numbers(model):
                                  column=f"{prt.name}.level")
         elif prt.kind == "feature":
             fn = prt.params.get("function")
-            for key, unit in FEATURE_NUMBERS.items():   # every one given reaches the C model data
-                if key in prt.params:
+            # the function's numbers, and any other given: every one reaches the C model data
+            for key, unit in FEATURE_NUMBERS.items():
+                if key in FEATURE_NEEDS.get(fn, ()) or key in prt.params:
                     _positive(prt, key, unit)
-            if fn in ("sat", "abs_sat", "stribeck"):
-                _positive(prt, "v_tilde", "mm/s")
-            if fn in ("stribeck", "play_stribeck"):
-                _positive(prt, "v_s", "mm/s")
             if fn in ("sin_position", "cos_position"):
-                _positive(prt, "period_mm", "mm")
                 if prt.params.get("source", "command") not in ("command", "position"):
                     raise InputError("feature source must be 'command' or 'position', got "
                                      f"{_short(prt.params.get('source'))}", column=f"{prt.name}.source")
             if fn in PLAY_FUNCTIONS:
-                _positive(prt, "width_mm", "mm")
                 if prt.params.get("source") != "position":
                     raise InputError(f"the {fn} feature acts on the model's own position: source "
                                      f"must be 'position', got {_short(prt.params.get('source'))}",

@@ -481,7 +481,7 @@ def to_play_law(recipe, axis, b):
     ``b`` (mm), with the friction's numerator terms and sign (the structure choice's play law,
     ``identify.structure.mimo_structure``)."""
     r = recipe.copy()
-    i = next(i for i, s in enumerate(r.inputs) if s.kind == "friction" and s.axis == axis)
+    i = friction_path(r.inputs, axis)       # its sat(v / v_tilde) input
     old, new = r.inputs[i].name, _unique(r, f"{axis}_play")
     r.inputs[i] = InputSpec("feature", axis, params={"function": "play", "width_mm": float(b),
                                                      "source": "position"}, name=new)

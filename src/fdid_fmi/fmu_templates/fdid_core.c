@@ -300,16 +300,9 @@ void fdid_initialize(FdidState *S) {
     for (i = 0; i < m; i++) {
         const FdidInput *in = &M->inputs[i];
         if (in->kind == FDID_IN_EXTERNAL) u0[i] = S->ext[i];
-        else if (is_play(in)) { /* a steady ramp has slid through the play: +-1, at rest 0 */
-            u0[i] = sign_of(S->v0[in->axis]);
-#if FDID_USE_LIBM
-            if (in->function == FDID_F_PLAY_STRIBECK) {
-                double q = S->v0[in->axis] / in->v_s;
-                u0[i] *= exp(-(q * q));
-            }
-#endif
-        } else if (in->kind == FDID_IN_FEATURE)
-            u0[i] = feature_value(in, S->v0[in->axis], S->cmd[in->axis], S->cmd[in->axis], 0.0);
+        else if (in->kind == FDID_IN_FEATURE) /* a steady ramp has slid through a play: h = x - b sign(v0) */
+            u0[i] = feature_value(in, S->v0[in->axis], S->cmd[in->axis], S->cmd[in->axis],
+                                  S->cmd[in->axis] - sign_of(S->v0[in->axis]) * in->width_mm);
     }
     /* xi = S u0 - S2 du */
     matvec(M->S, n, m, u0, S->xi);
