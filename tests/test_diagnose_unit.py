@@ -131,6 +131,29 @@ def test_whiteness_of_white_noise_and_of_a_filtered_one():
     assert t2["acf_outside"] > 0.3
 
 
+def test_early_response_chi2_sees_an_answer_in_the_first_lags_only():
+    """The dead-time statistic: about M (its degrees of freedom) for a residual that does not
+    answer the command, far above it for one that answers within the first M samples, and blind
+    to an answer that comes later (that is the poles' business, not a dead time's)."""
+    from fdid_fmi.diagnose.delay import early_response_chi2
+    rng = np.random.default_rng(3)
+    n, Ts, M = 20000, 1e-3, 12
+    # a smooth command: filtered random velocity, integrated (mm)
+    v = np.convolve(rng.normal(size=n), np.hanning(40) / 20, mode="same")
+    cmd = np.cumsum(v) * 1e-2
+    noise = np.cumsum(rng.normal(0, 1e-5, n))           # white increments
+    du = np.diff(cmd, prepend=cmd[0])
+
+    def answering(lag, gain=0.01):                      # residual increments answer du at a lag
+        return noise + np.cumsum(np.concatenate([np.zeros(lag), gain * du[:n - lag]]))
+
+    assert 0.3 * M < early_response_chi2(cmd, noise, Ts, M) < 2.5 * M
+    assert early_response_chi2(cmd, answering(2), Ts, M) > 50 * M
+    assert early_response_chi2(cmd, answering(M + 5), Ts, M) < 2.5 * M
+    # too short a record for the FIR (4 x 100 lags at 1 ms): nan, not a number from nothing
+    assert np.isnan(early_response_chi2(cmd[:300], noise[:300], Ts, M))
+
+
 def test_report_is_self_contained_html_with_figure_data(tmp_path):
     import matplotlib
     matplotlib.use("Agg")
