@@ -13,8 +13,9 @@ periodic (15), coupling (0.15) and asymmetric-friction (4) gates keep the second
 asymmetric run); the margin matters for coupling: 1.2 x the largest clean virtual value (0.00098)
 would flag 8 of plant2's 9 clean runs (up to 0.018). The mode gate (0.27) passes both plant2
 modes but also one plant2 clean run; the Stribeck gate does not transfer (plant2's LuGre friction
-puts every clean run above it) and the dead-time gate separates neither plant (figures in each
-detector's docstring).
+puts every clean run above it). The dead-time gate (session 27's statistic) keeps both plants'
+clean runs below it and passes the virtual delay, not plant2's on the thesis path's model (figures
+in each detector's docstring).
 """
 from __future__ import annotations
 

@@ -5,15 +5,15 @@ Evidence 1 (reported): the lag of the peak cross-correlation between the residua
 commanded velocity (a measurement that lags by d samples leaves r ~ -d Ts v).
 Evidence 2 (the statistic): the model is refitted with its command delayed by k = 0..``MAX_DELAY``
 samples (a delay line in A/B, see augment.py; twice per shift, :func:`_profiles`). For each
-shift, :func:`early_response_chi2` measures how much of the training residual still answers the
-command within its first ``2 * MAX_DELAY`` samples: a model that answers d samples too early
-leaves that early answer, with the opposite sign, in its residual, however well its poles mimic
-the delay later on. X_k is the lowest chi-square of the shift's fits; k* = argmin X_k; the
+shift, :class:`EarlyResponse` measures how much of the training residual still answers the
+command in its first ``2 * max_delay`` samples: a model that answers d samples too early leaves
+that early answer, with the opposite sign, in its residual, however well its poles mimic the
+delay later on. X_k is the lowest chi-square of the shift's fits; k* = argmin X_k; the
 statistic is X_0 / X_k* (1 when no shift helps, or when k* is the largest shift tried:
 :func:`shift_statistic`).
 
-Why not the free run: the training free-run RMS F_k (kept as evidence, ``free_run_rms_um_by_
-shift``) was the statistic until session 27. It is nearly flat in k (the poles mimic most of a
+Why not the free run: the training free-run RMS (kept as evidence, ``free_run_rms_um_by_shift``,
+of the fit each shift's chi-square comes from) was the statistic until session 27. It is nearly flat in k (the poles mimic most of a
 dead time), so no threshold separated clean from delayed runs on either plant (virtual clean up
 to 1.095, its 3-sample delay 1.05-1.09; plant2 clean up to 1.14, its delay 1.13-1.17).
 
@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
+from scipy.linalg import solve_triangular
 
 from ..errors import InputError
 from . import augment as ag
@@ -64,43 +65,80 @@ def fir_length(Ts, lags):
     return max(int(lags), int(round(FIR_SECONDS / Ts)))
 
 
-def early_response_chi2(cmd, residual, Ts, lags):
-    """Chi-square of the residual's response to the command over its first ``lags`` samples.
+class EarlyResponse:
+    """The residual's early answer to a command: chi-square of the first ``lags`` coefficients of
+    a FIR from the command's increments to the residual's increments.
 
     The residual's increments dr(n) are regressed on the command's increments dx_r(n - j),
-    j = 0..L-1 (a FIR of L = :func:`fir_length` lags; the least squares whitens the smooth
-    command, so the coefficients h_j are the residual's own impulse response):
+    j = 0..L-1 (L = :func:`fir_length`; the least squares whitens the smooth command, so the
+    coefficients h_j are the residual's own impulse response). With the regressor matrix
+    A = Q R and the tested coefficients h_2 = h_0..h_{M-1} (M = ``lags``) last,
 
-        chi2 = h[:M]^T C[:M, :M]^-1 h[:M],   C = s^2 (A^T A)^-1,   M = ``lags``,
+        chi2 = |R_22 h_2|^2 / s^2   (the Wald statistic of h_2 = 0; R_22 its block of R),
 
-    s^2 the FIR's residual variance. About M for a residual that does not answer the command in
-    its first M samples (more when the residual is coloured, as a model's is; the detector compares
-    chi-squares of one trace, not with a table).
+    s^2 the FIR's residual variance: about M for a residual that does not answer the command in
+    its first M samples (more for a coloured residual, as a model's is: the detector compares
+    chi-squares of one trace, not with a table). The power to see an answer falls off towards
+    lag M on smooth commands (the FIR's neighbouring coefficients trade off).
+
+    R depends only on the command, so it is factored once (blocked QR, a few MB at any record
+    length) and each residual costs two correlations (corrected semi-normal equations: the
+    normal equations alone lose the accuracy a jerk-limited command's conditioning needs).
 
     Parameters
     ----------
-    cmd, residual : array_like, mm
-        Commanded position and residual (measured - predicted position), one sample each per Ts.
+    cmd : array_like, mm
+        Commanded position, one sample per Ts.
     Ts : float, s
     lags : int
         M, the leading FIR lags tested.
-
-    Returns
-    -------
-    float, or nan when the record is shorter than 4 L samples (too short for the FIR).
     """
-    L = fir_length(Ts, lags)
-    du, dr = np.diff(np.asarray(cmd, float)), np.diff(np.asarray(residual, float))
-    if du.size < 4 * L:
-        return float("nan")
-    A = sliding_window_view(du, L)[:, ::-1]         # row n: du[n + L - 1 - j], j = 0..L-1
-    b = dr[L - 1:]
-    G = A.T @ A
-    h = np.linalg.lstsq(G, A.T @ b, rcond=None)[0]
-    e = b - A @ h
-    s2 = float(e @ e) / (b.size - L)
-    C = s2 * np.linalg.pinv(G, hermitian=True)[:lags, :lags]
-    return float(h[:lags] @ np.linalg.pinv(C, hermitian=True) @ h[:lags])
+
+    ROWS = 8192         # rows per QR block
+
+    def __init__(self, cmd, Ts, lags):
+        self.lags, self.L = int(lags), fir_length(Ts, lags)
+        self.du = np.diff(np.asarray(cmd, float))
+        self.R = None
+        L = self.L
+        if self.du.size < 4 * L or not np.isfinite(self.du).all():
+            return
+        # row n of A: du[n..n+L-1], the lags L-1..0 of the target dr[n+L-1]: the tested lags last
+        A = sliding_window_view(self.du, L)
+        R = np.zeros((0, L))
+        for i in range(0, A.shape[0], self.ROWS):
+            R = np.linalg.qr(np.vstack([R, A[i:i + self.ROWS]]), mode="r")
+        d = np.abs(np.diag(R))
+        if d.min() > 1e-10 * d.max():       # else the command does not excite every lag
+            self.R = R
+
+    def _solve(self, g):
+        """(R^T R)^-1 g."""
+        y = solve_triangular(self.R, g, trans="T")
+        return solve_triangular(self.R, y)
+
+    def chi2(self, residual):
+        """The chi-square for one residual (mm, measured - predicted position, one sample per
+        Ts); nan when the record is shorter than 4 L samples, the command does not excite every
+        lag, or the residual is not finite."""
+        dr = np.diff(np.asarray(residual, float))
+        if self.R is None or dr.size != self.du.size or not np.isfinite(dr).all():
+            return float("nan")
+        b = dr[self.L - 1:]
+        h = self._solve(np.correlate(self.du, b, "valid"))
+        r = b - np.correlate(self.du, h, "valid")
+        h += self._solve(np.correlate(self.du, r, "valid"))       # one step of refinement
+        r = b - np.correlate(self.du, h, "valid")
+        s2 = float(r @ r) / (b.size - self.L)
+        if not s2 > 0:
+            return float("nan")
+        z = self.R[-self.lags:, -self.lags:] @ h[-self.lags:]
+        return float(z @ z) / s2
+
+
+def early_response_chi2(cmd, residual, Ts, lags):
+    """:meth:`EarlyResponse.chi2` of one residual (see :class:`EarlyResponse`)."""
+    return EarlyResponse(cmd, Ts, lags).chi2(residual)
 
 
 def shift_statistic(J):
@@ -120,30 +158,35 @@ def shift_statistic(J):
 
 
 def _profiles(ctx, a, kmax, maxiter):
-    """Early-response chi-square and free-run RMS (um) of the best refit with each command shift
-    0..kmax (inf where no refit was feasible; nan where the record is too short for the chi-square).
+    """Early-response chi-square and free-run RMS (um) of the refits with each command shift
+    0..kmax (inf where no refit could be fitted and simulated; nan where no training trace is
+    long enough for the chi-square).
 
     Each shift is refitted twice, over the engine's default space (a dead time moves the poles
     far) and locally from the current poles: a search may end anywhere in a flat valley, and the
     profile should show what the shift allows, not where one search ended. Shift 0 also has the
-    current model itself. Per shift, the refit with the lower chi-square is kept.
+    current model. Per shift, the fit with the lower chi-square counts, and the free run is that
+    fit's. The chi-square of several traces is the sum over those long enough for it.
     """
+    tests = [EarlyResponse(tr.cmd(a), ctx.Ts, 2 * kmax) for tr in ctx.train]
+
     def score(m):
         res = [residuals(m, tr).axes[a] for tr in ctx.train]
-        chi2 = sum(early_response_chi2(r.cmd, r.residual, ctx.Ts, 2 * kmax) for r in res)
+        chi2 = [t.chi2(r.residual) for t, r in zip(tests, res)]
+        chi2 = sum(c for c in chi2 if np.isfinite(c)) if np.isfinite(chi2).any() else np.nan
         return chi2, np.sqrt(np.mean([np.mean(r.residual ** 2) for r in res])) * 1e3
 
     X, F = np.full(kmax + 1, np.inf), np.full(kmax + 1, np.inf)
     for k in range(kmax + 1):
         rec = ag.add_delay(ctx.recipe, a, k) if k else ctx.recipe
-        fits = [ctx.model] if k == 0 else []
+        scored = [score(ctx.model)] if k == 0 else []
         for kw in ({"search": "wide"}, {"search": "local", "from_current": True}):
-            try:
-                fits.append(ag.fit(rec, ctx.train, maxiter=maxiter, refine=False, **kw))
+            try:        # a refit may be infeasible, or its free run may diverge
+                scored.append(score(ag.fit(rec, ctx.train, maxiter=maxiter, refine=False, **kw)))
             except InputError:
                 pass
-        if fits:
-            X[k], F[k] = min((score(m) for m in fits), key=lambda xf: np.nan_to_num(xf[0], nan=np.inf))
+        if scored:
+            X[k], F[k] = min(scored, key=lambda xf: np.nan_to_num(xf[0], nan=np.inf))
     return X, F
 
 

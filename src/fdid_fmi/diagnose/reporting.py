@@ -125,9 +125,10 @@ def _evidence_figure(cand):
         ax.loglog(lam, bg, lw=0.8, ls="--", label="running median")
         ax.set_xlabel("wavelength [mm]")
     elif kind == "delay":
-        ax.plot(np.asarray(p["shift"]), np.asarray(p["objective"]), "o-")
+        ax.semilogy(np.asarray(p["shift"]), np.asarray(p["objective"]), "o-",
+                    label="chi-square of the residual's early answer")
         ax.set_xlabel("command shift [samples]")
-        ax.set_ylabel("training free-run RMS [µm]")
+        ax.set_ylabel("chi-square (training)")
     else:
         plt.close(fig)
         return None, None
