@@ -25,8 +25,9 @@ about one sample: on plant2 the shifts' fits scatter (a search ends anywhere in 
 Threshold ``RATIO`` 2.3 (``examples/diagnose_calibrate.py --effects --plant2``, thesis-path
 models): 1.2 x the largest of the 15 clean virtual-drive runs (1.89, clean_fast seed 3, at
 k = 1). Measured on the second plant (tests/plant2), where it was not set: its 9 clean runs
-1.00-2.09, none passes; its 3-sample delay 2.02 on the thesis path's model (missed there), 4.90
-on ``fdid identify``'s default model (r1c2, named as 4 samples and kept). The virtual 3-sample
+1.00-2.09, none passes; its 3-sample delay 2.02 on the thesis path's model (seed 0, missed
+there; seeds 1 and 2: 3.94, 4.51), 4.90 on ``fdid identify``'s default model (r1c2, named as 4
+samples and kept). The virtual delay on its default model (r2c2) is named as 3 samples. The virtual 3-sample
 delay reads 120; a plant2-calibrated threshold (2.5) passes no clean virtual run.
 """
 from __future__ import annotations
