@@ -155,27 +155,15 @@ def test_early_response_chi2_sees_an_answer_in_the_first_lags_only():
 
 
 def test_early_response_chi2_keeps_its_accuracy_on_a_jerk_limited_command_with_dwells():
-    """Jerk-limited moves with dwells at 0.5 ms (69 % of the command's increments exactly 0) make
-    the FIR's regressors ill-conditioned (cond ~1e7): the normal equations lost a factor 2 on a
-    null chi-square there (helper-40: 8.6 against 18.5). Against a dense QR solution."""
+    """Jerk-limited moves with 0.5 s pauses at 0.5 ms (62 % of the command's increments exactly 0)
+    make the FIR's regressors ill-conditioned (cond ~4e7): the normal equations lost up to 10x on
+    a null chi-square there (1.0 against 11.2; helper-40 first saw it). Against a dense QR."""
     from numpy.lib.stride_tricks import sliding_window_view
     from fdid_fmi.diagnose.delay import EarlyResponse, fir_length
-    rng = np.random.default_rng(1)
+    from fdid_fmi.virtual.trajectories import linear_moves
     Ts, M = 5e-4, 12
-
-    def move(dist, vmax=200.0, amax=2000.0, jmax=1e5):
-        tj = amax / jmax
-        ta, tv = vmax / amax - tj, dist / vmax - (vmax / amax + tj)
-        segs = [(tj, jmax), (ta, 0), (tj, -jmax), (max(tv, 0), 0), (tj, -jmax), (ta, 0), (tj, jmax)]
-        j = np.concatenate([np.full(int(round(T / Ts)), J) for T, J in segs])
-        return np.cumsum(np.cumsum(np.cumsum(j) * Ts) * Ts) * Ts
-
-    parts, x0 = [], 0.0
-    for _ in range(8):
-        m = move(rng.uniform(5, 40)) * rng.choice([-1, 1])
-        parts += [np.full(1000, x0), x0 + m]
-        x0 += m[-1]
-    cmd = np.concatenate(parts + [np.full(1000, x0)])
+    cmd = linear_moves(n_moves=8, d_min=5.0, d_max=40.0, v=200.0, acc=2000.0, jerk=1e5, Ts=Ts,
+                       pause=(0.5, 0.5), seed=0).positions["x"]
     L = fir_length(Ts, M)
     A = np.ascontiguousarray(sliding_window_view(np.diff(cmd), L))     # tested lags last
     Q, R = np.linalg.qr(A)

@@ -171,8 +171,7 @@ def _profiles(ctx, a, kmax, maxiter):
     """
     tests = [EarlyResponse(tr.cmd(a), ctx.Ts, 2 * kmax) for tr in ctx.train]
 
-    def score(m):
-        res = [residuals(m, tr).axes[a] for tr in ctx.train]
+    def score(res):
         chi2 = [t.chi2(r.residual) for t, r in zip(tests, res)]
         chi2 = sum(c for c in chi2 if np.isfinite(c)) if np.isfinite(chi2).any() else np.nan
         return chi2, np.sqrt(np.mean([np.mean(r.residual ** 2) for r in res])) * 1e3
@@ -180,10 +179,11 @@ def _profiles(ctx, a, kmax, maxiter):
     X, F = np.full(kmax + 1, np.inf), np.full(kmax + 1, np.inf)
     for k in range(kmax + 1):
         rec = ag.add_delay(ctx.recipe, a, k) if k else ctx.recipe
-        scored = [score(ctx.model)] if k == 0 else []
+        scored = [score([r.axes[a] for r in ctx.res])] if k == 0 else []    # the current model's
         for kw in ({"search": "wide"}, {"search": "local", "from_current": True}):
             try:        # a refit may be infeasible, or its free run may diverge
-                scored.append(score(ag.fit(rec, ctx.train, maxiter=maxiter, refine=False, **kw)))
+                m = ag.fit(rec, ctx.train, maxiter=maxiter, refine=False, **kw)
+                scored.append(score([residuals(m, tr).axes[a] for tr in ctx.train]))
             except InputError:
                 pass
         if scored:
