@@ -46,6 +46,15 @@ its Stribeck run 13.1, inside that range; no threshold separates them there, and
 maximum (21.2) would miss the virtual Stribeck. Its clean |t| stays below 1.62 (no asymmetric
 run there). Tool side on plant2: backlash 21.7, the 38 Hz tool-side mode without backlash 11.8
 (tried; the held-out criterion and the reference decide).
+
+Since session 28 the Stribeck gate is 1.0, a floor, not a separation: the concentration only
+asks that the residual sit at the ends of the moves more than elsewhere, and the refit with its
+held-out criterion and the plausibility check (the breakaway excess must be positive) decide. On
+``fdid identify``'s default models the statistic separates neither plant: the virtual Stribeck
+run's chosen r2c2 reads 2.01, below the thesis-path clean maximum (2.17), and its refit is 9 %
+better held out (0.396 -> 0.360 um, kept); the virtual clean runs' default models read 1.20-1.55
+and nothing is kept on them; plant2's runs read 8-52 (all tried before as well), its periodic
+run 0.39-0.46 (not tried).
 """
 from __future__ import annotations
 
@@ -57,7 +66,7 @@ from . import augment as ag
 from .base import Candidate, command_velocity, motion_events, scan_refine
 
 WINDOW_S = 0.04
-STRIBECK_RATIO = 2.6
+STRIBECK_RATIO = 1.0      # a floor: the refit decides (module docstring, session 28)
 ASYM_T = 4.0
 BACKLASH_T = 8.0
 MIN_MOVES = 3           # moves the t statistics need
