@@ -28,6 +28,19 @@ def _run(name, axis="x", base_maxiter=30, **kw):
     return d, tr
 
 
+def _default_candidate(tr, label, same_sample):
+    """The candidate of ``fdid identify``'s structure choice that it picks on this trace (one fit
+    of it instead of the whole choice)."""
+    from fdid_fmi.identify.choose_structure import family
+    from fdid_fmi.identify.pole_search import identify_mimo
+    from fdid_fmi.identify.ranges import training_ranges
+    (cand,) = [c for c in family(True) + family(False) if c.label == label]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return identify_mimo(training_ranges(tr, ["x"]), cand.structure("x", same_sample),
+                             bounds=cand.bounds(tr.Ts), seed=0)
+
+
 def _val_gain(d, channel="x"):
     b = d.before["val"][channel]["rms_um"]
     a = d.after["val"][channel]["rms_um"]
@@ -64,15 +77,10 @@ def test_stribeck_on_the_default_structure():
     the largest clean thesis-path value (2.17). The Stribeck gate is a floor (1.0) since session
     28, so the refit is tried and the held-out criterion keeps it (measured: 0.396 -> 0.360 um)."""
     from fdid_fmi.diagnose import friction
-    from fdid_fmi.identify.choose_structure import family
-    from fdid_fmi.identify.pole_search import identify_mimo
-    from fdid_fmi.identify.ranges import training_ranges
     tr, va = scenario("stribeck")
-    r2c2 = family(True)[-1]
+    m = _default_candidate(tr, "r2c2", "cubic")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        m = identify_mimo(training_ranges(tr, ["x"]), r2c2.structure("x", "cubic", "backward", 1, ["error"]),
-                          bounds=r2c2.bounds(tr.Ts), seed=0)
         d = diagnose(m, tr, va, detectors=["friction"])
     stat = next(c["statistic"] for c in d.rounds[0]["candidates"] if c["kind"] == "stribeck")
     assert friction.STRIBECK_RATIO <= stat < 2.6          # under the old gate: tried only now
@@ -140,6 +148,27 @@ def test_asymmetric_coulomb_in_a_p_loop():
     e = d.effects_added[0]
     assert e["ratio_to_coulomb"] < 0          # more friction in the negative direction (40 vs 20 N)
     assert _val_gain(d) >= 0.3                # measured: about 56 %
+
+
+def test_asymmetric_coulomb_under_a_structure_with_integral_action():
+    """``fdid identify``'s default choice on the P loop's trace is r1c2 with integral action
+    (0.54 um training free run against 1.22-1.47 um without it): it rejects a constant force and
+    leaves no offset to see (|t| 0.13). The detector then looks at the model's twin without
+    integral action, refitted (|t| 5.7), and the term goes on that twin (measured: 1.10 -> 0.61 um
+    held out)."""
+    from fdid_fmi.diagnose import augment as ag, friction
+    tr, va = scenario("asymmetric")
+    m = _default_candidate(tr, "r1c2", "cubic")
+    assert ag.has_integral_action(ag.recipe_from_model(m), "x")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        d = diagnose(m, tr, va, detectors=["friction"])
+    (c,) = [c for c in d.rounds[0]["candidates"] if c["kind"] == "asymmetric_friction"]
+    assert c["evidence"]["t_p_loop_twin"] >= friction.ASYM_T
+    assert [e["kind"] for e in d.effects_added] == ["asymmetric_friction"]
+    assert d.effects_added[0]["ratio_to_coulomb"] < 0      # more friction in the negative direction
+    assert not ag.has_integral_action(ag.recipe_from_model(d.final), "x")
+    assert _val_gain(d) >= 0.3                             # measured: 44 %
 
 
 @pytest.mark.parametrize("name, delayed", [("delay", True), ("clean_soft", False)])

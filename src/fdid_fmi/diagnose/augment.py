@@ -516,6 +516,29 @@ def add_asymmetry(recipe, axis):
     return r
 
 
+def has_integral_action(recipe, axis):
+    """True when the axis's friction reaches a motor-side output without a d.c. gain: the
+    thesis's s/P(s) (Eqn 4.10), an integrator in the loop that holds the motor against a constant
+    force (``identify.structure.default_mask``)."""
+    i = friction_path(recipe.inputs, axis)
+    if i is None:
+        return False
+    name = recipe.inputs[i].name
+    return any(0 not in recipe.masks.get((o.name, name), {0}) for o in recipe.outputs
+               if o.axis == axis and not is_tool_side(o))
+
+
+def without_integral_action(recipe, axis):
+    """The recipe's P-loop twin: the axis's friction reaches its motor-side outputs with a d.c.
+    gain (the s^0 term; 1/P(s), the ``-noI`` structures of ``identify.choose_structure``)."""
+    r = recipe.copy()
+    name = r.inputs[friction_path(r.inputs, axis)].name
+    for o in r.outputs:
+        if o.axis == axis and not is_tool_side(o) and (o.name, name) in r.masks:
+            r.masks[(o.name, name)] = r.masks[(o.name, name)] | {0}
+    return r
+
+
 def add_periodic(recipe, axis, period_mm):
     r = add_feature(recipe, axis, "sin_position", {"period_mm": float(period_mm), "source": "position"},
                     None, {}, name=f"{axis}_sin")

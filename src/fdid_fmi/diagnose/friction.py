@@ -60,10 +60,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InputError
 from ..identify.choose_structure import PLAY_WIDTHS_MM
 from ..model import is_play
 from . import augment as ag
 from .base import Candidate, command_velocity, motion_events, scan_refine
+from .residuals import residuals
 
 WINDOW_S = 0.04
 STRIBECK_RATIO = 1.0      # a floor: the refit decides (module docstring, session 28)
@@ -144,28 +146,44 @@ def _concentration_regimes(res_list, a, Ts):
     return (e_in[0] / e_in[1]) / ref if ref > 0 and e_in[1] > 0 else 0.0
 
 
-def _detect_axis(ctx, a):
-    Ts = ctx.Ts
-    w = max(3, int(round(WINDOW_S / Ts)))
-    means_even = []
-    tool_m, have_tool = [], False
-    for res in ctx.res:
+def _move_offsets(res_list, a, Ts, w):
+    """Per move: the mean residual, and (with a tool-side channel) the direction-aligned mean
+    tool-side residual (None without one)."""
+    means, tool_m, have_tool = [], [], False
+    for res in res_list:
         ar = res.axes[a]
-        r = ar.residual
         ev = motion_events(ar.cmd, Ts)
         v = command_velocity(ar.cmd, Ts)
         moving = np.abs(v) > 0.02 * np.max(np.abs(v))
-        for seg in _moves(ev, moving, w, r.size):
-            means_even.append(float(np.mean(r[seg])))
-        if ar.tool_residual is not None:
-            have_tool = True
-            for seg in _moves(ev, moving, w, r.size):
-                s = np.sign(np.median(v[seg]))
-                tool_m.append(float(s * np.mean(ar.tool_residual[seg])))
+        have_tool |= ar.tool_residual is not None
+        for seg in _moves(ev, moving, w, ar.residual.size):
+            means.append(float(np.mean(ar.residual[seg])))
+            if ar.tool_residual is not None:
+                tool_m.append(float(np.sign(np.median(v[seg])) * np.mean(ar.tool_residual[seg])))
+    return np.array(means), (np.array(tool_m) if have_tool else None)
+
+
+def _p_loop_twin(ctx, a, w):
+    """The current model's P-loop twin (:func:`.augment.without_integral_action`) refitted over
+    the default space, and the |t| and mean (um) of its direction-independent move offsets
+    (|t| 0 when it cannot be fitted)."""
+    twin = ag.without_integral_action(ctx.recipe, a)
+    try:
+        m = ag.fit(twin, ctx.train, search="wide", maxiter=int(ctx.settings.get("maxiter", 25)))
+    except InputError:
+        return twin, 0.0, 0.0
+    me, _ = _move_offsets([residuals(m, tr) for tr in ctx.train], a, ctx.Ts, w)
+    return twin, abs(_t(me)), float(np.mean(me) * 1e3) if me.size else 0.0
+
+
+def _detect_axis(ctx, a):
+    Ts = ctx.Ts
+    w = max(3, int(round(WINDOW_S / Ts)))
+    me, tm = _move_offsets(ctx.res, a, Ts, w)
     cands = []
     ratio = concentration(ctx.res, a, Ts, rest="pooled")
     cand = Candidate("stribeck", a, ratio, STRIBECK_RATIO,
-                     evidence={"window_s": WINDOW_S, "events": len(means_even)},
+                     evidence={"window_s": WINDOW_S, "events": int(me.size)},
                      note="residual energy in the 40 ms after motion starts/stops over the rest")
     if not any(_has_windows(res.axes[a], Ts, w) for res in ctx.res):
         cand.not_checked = ("the training trace has no motion start or stop with samples both in and "
@@ -178,21 +196,31 @@ def _detect_axis(ctx, a):
     if cand.detected and any(s.kind == "friction" for s in own) and not any(map(is_play, own)):
         cands.append(_play_law_candidate(ctx, a, cand))     # a sat-law axis without a play
 
-    me = np.array(means_even)
     t_even = _t(me)
     cand = Candidate("asymmetric_friction", a, abs(t_even), ASYM_T,
                      params={"mean_offset_um": float(np.mean(me) * 1e3) if me.size else 0.0},
                      note="|t| of the direction-independent mean residual over moves")
+    has_friction = ctx.model.input_index("friction", a) is not None
+    base = ctx.recipe
     if me.size < MIN_MOVES:
         cand.not_checked = f"the training trace has {me.size} move(s); the t statistic needs {MIN_MOVES}"
-    if cand.detected and ctx.model.input_index("friction", a) is not None:
-        cand.recipe = ag.add_asymmetry(ctx.recipe, a)
+    elif not cand.detected and has_friction and ag.has_integral_action(ctx.recipe, a):
+        # integral action rejects a constant force, so the model leaves no offset to see; a P loop
+        # keeps it, and its twin shows it (the virtual P loop's default r1c2: |t| 0.13 -> 5.70)
+        twin, t_twin, offset = _p_loop_twin(ctx, a, w)
+        cand.evidence["t_p_loop_twin"] = t_twin
+        if t_twin > cand.statistic:
+            cand.statistic, cand.params["mean_offset_um"] = t_twin, offset
+        if cand.detected:
+            base, cand.search, cand.reference = twin, "wide", twin
+            cand.note += " (of the model's twin without integral action)"
+    if cand.detected and has_friction:
+        cand.recipe = ag.add_asymmetry(base, a)
     elif cand.detected:
         cand.note += " (the axis has no sat(v / v_tilde) friction input: not tried)"
     cands.append(cand)
 
-    if have_tool:
-        tm = np.array(tool_m)
+    if tm is not None:
         t_tool = _t(tm)
         b = 2.0 * abs(float(np.mean(tm))) if tm.size else 0.0
         cand = Candidate("backlash", a, abs(t_tool), BACKLASH_T, params={"backlash_mm": b}, search="locked",
