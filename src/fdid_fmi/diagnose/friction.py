@@ -19,7 +19,14 @@ Asymmetric Coulomb
     differs by direction acts as a force offset that does not change sign at a reversal):
     t = mean(m_e) / (std(m_e) / sqrt(n_e)), m_e = mean residual while moving in move e. With
     integral action in the loop the offset is rejected and nothing is left to see; P/PD loops
-    (EMPS) keep it.
+    (EMPS) keep it. A model with integral action (its friction without a d.c. path, the thesis's
+    s/P(s)) rejects it too, even where the drive does not: on the virtual P loop with asymmetric
+    friction ``fdid identify`` chooses r1c2 with integral action (training free run 0.54 um,
+    1.22-1.47 um for every structure without it), whose offset reads |t| = 0.13. So below the gate
+    such a model's P-loop twin (:func:`.augment.without_integral_action`, refitted over the
+    default space) is read as well (evidence ``t_p_loop_twin``; there 5.70); when the twin passes,
+    the term goes on the twin, which is also its reference, so what the d.c. path alone gains is
+    not credited to the asymmetry.
 Backlash / lost motion (needs a tool-side channel)
     Statistic: |t| of the direction-aligned mean tool-side residual while moving, over moves:
     m_e = s_e * mean(r_tool over move e); lost motion b shows as m_e = -b/2 on every move.
