@@ -72,9 +72,9 @@ def test_identify_then_diagnose_two_axes_cli(two_axis, capsys):
     # each block is scored on its own axis only
     assert list(per["x"]["before"]["val"]) == ["x"] and list(per["y"]["before"]["val"]) == ["y"]
     # y's commanded motion pushes x: found on x (as another axis's command), not on y
-    assert "coupling" in per["x"]["detected"]
-    assert "coupling" not in per["y"]["detected"]
-    assert "axis x: detected" in text and "axis y: detected" in text
+    assert "coupling" in per["x"]["tried"]
+    assert "coupling" not in per["y"]["tried"]
+    assert "axis x: tried" in text and "axis y: tried" in text
     # no tool-side channels: each axis says backlash was not checked (console and JSON)
     assert [(n["axis"], n["kind"]) for n in d["notes"]] == [("x", "not_observable"), ("y", "not_observable")]
     assert "note (not_observable): axis y: lost motion" in text

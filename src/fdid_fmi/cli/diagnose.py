@@ -119,9 +119,12 @@ def run(args):
                   f"{1e3 * e['width_mm']:g} um (presliding) in place of sat(v / v_tilde): the model and "
                   f"its FMU have no {e['axis']}_friction_level, {e['axis']}_v_tilde or "
                   f"{e['axis']}_friction_on parameter any more")
+        if e.get("integral_action") is False:
+            print(f"    the model of axis {e['axis']} has no integral action any more: its friction reaches "
+                  f"the tracking error with a d.c. gain (a P loop), as the term needs")
     for ax, d in diag.axes.items():     # combined per-axis model: the findings of each block
-        det = sorted({c["kind"] for r in d.rounds for c in r["candidates"] if c["detected"]})
-        print(f"  axis {ax}: detected {', '.join(det) or 'nothing'}; "
+        tried = sorted({c["kind"] for r in d.rounds for c in r["candidates"] if c["detected"]})
+        print(f"  axis {ax}: tried {', '.join(tried) or 'nothing'}; "
               f"kept {', '.join(e['kind'] for e in d.effects_added) or 'none'}")
     for tname in diag.before:
         for ch, b in diag.before[tname].items():

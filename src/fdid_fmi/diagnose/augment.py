@@ -516,25 +516,32 @@ def add_asymmetry(recipe, axis):
     return r
 
 
+def _dc_outputs(recipe, axis):
+    """The axis's motor-side error and position outputs: where a constant force has a d.c. effect
+    unless an integrator in the loop holds the motor (not velocity or acceleration)."""
+    return [o for o in recipe.outputs if o.axis == axis and o.predicts in ("error", "position")
+            and not is_tool_side(o)]
+
+
 def has_integral_action(recipe, axis):
-    """True when the axis's friction reaches a motor-side output without a d.c. gain: the
-    thesis's s/P(s) (Eqn 4.10), an integrator in the loop that holds the motor against a constant
-    force (``identify.structure.default_mask``)."""
+    """True when the axis's friction reaches its motor-side error or position through a path
+    without a d.c. gain: the thesis's s/P(s) (Eqn 4.10), an integrator in the loop that holds the
+    motor against a constant force (``identify.structure.default_mask``)."""
     i = friction_path(recipe.inputs, axis)
     if i is None:
         return False
     name = recipe.inputs[i].name
-    return any(0 not in recipe.masks.get((o.name, name), {0}) for o in recipe.outputs
-               if o.axis == axis and not is_tool_side(o))
+    return any((m := recipe.masks.get((o.name, name))) and 0 not in m for o in _dc_outputs(recipe, axis))
 
 
 def without_integral_action(recipe, axis):
-    """The recipe's P-loop twin: the axis's friction reaches its motor-side outputs with a d.c.
-    gain (the s^0 term; 1/P(s), the ``-noI`` structures of ``identify.choose_structure``)."""
+    """The recipe's P-loop twin: the axis's friction reaches its motor-side error and position with
+    a d.c. gain (the s^0 term, 1/P(s), as in the ``-noI`` structures of
+    ``identify.choose_structure``; features added earlier keep their paths)."""
     r = recipe.copy()
     name = r.inputs[friction_path(r.inputs, axis)].name
-    for o in r.outputs:
-        if o.axis == axis and not is_tool_side(o) and (o.name, name) in r.masks:
+    for o in _dc_outputs(r, axis):
+        if r.masks.get((o.name, name)):
             r.masks[(o.name, name)] = r.masks[(o.name, name)] | {0}
     return r
 

@@ -39,13 +39,13 @@ Thresholds (calibration: ``examples/diagnose_calibrate.py``, 15 clean virtual-dr
 gentle and fast moves, a softer velocity loop, two uncoupled axes, a P loop, 3 seeds each): the largest
 clean values were 2.35 (concentration; Stribeck data: 3.5-4) and 2.0 (|t| asymmetry; the
 asymmetric P-loop data: 5.5); hence
-``STRIBECK_RATIO`` = 2.6 and ``ASYM_T`` = 4. The clean runs have no tool channel; the tool-side
+the Stribeck gate 2.6 (a floor of 1.0 since session 28, below) and ``ASYM_T`` = 4. The clean runs have no tool channel; the tool-side
 statistic was 2.1 on the backlash data once the backlash was modelled and 5.8 on a two-mass axis
 without backlash (tool-side dynamics, not lost motion), against 73 with 20 µm backlash: hence
 ``BACKLASH_T`` = 8.
 
 Recalibrated with the causal models (``examples/diagnose_calibrate.py --effects --plant2``):
-virtual clean up to 2.17 (concentration, clean_soft seed 5; 1.2 x = 2.60, the shipped value) and
+virtual clean up to 2.17 (concentration, clean_soft seed 5; 1.2 x = 2.60, the gate until session 28) and
 3.11 (|t|, clean_p seed 3; 1.2 x = 3.73 < 4); virtual Stribeck 3.27, asymmetric P loop 6.84,
 backlash 69. The second plant (tests/plant2, LuGre friction) does NOT transfer for Stribeck: its 9
 clean runs give 6.55-17.7 (all above 2.6: LuGre's own breakaway is what the statistic sees) and
@@ -172,15 +172,15 @@ def _move_offsets(res_list, a, Ts, w):
 
 def _p_loop_twin(ctx, a, w):
     """The current model's P-loop twin (:func:`.augment.without_integral_action`) refitted over
-    the default space, and the |t| and mean (um) of its direction-independent move offsets
-    (|t| 0 when it cannot be fitted)."""
+    the default space: (its recipe, |t| and mean (um) of its direction-independent move offsets,
+    None) or, when it cannot be fitted, (its recipe, nan, nan, the reason)."""
     twin = ag.without_integral_action(ctx.recipe, a)
     try:
         m = ag.fit(twin, ctx.train, search="wide", maxiter=int(ctx.settings.get("maxiter", 25)))
-    except InputError:
-        return twin, 0.0, 0.0
+    except InputError as exc:
+        return twin, float("nan"), float("nan"), str(exc)
     me, _ = _move_offsets([residuals(m, tr) for tr in ctx.train], a, ctx.Ts, w)
-    return twin, abs(_t(me)), float(np.mean(me) * 1e3) if me.size else 0.0
+    return twin, abs(_t(me)), float(np.mean(me) * 1e3), None
 
 
 def _detect_axis(ctx, a):
@@ -214,13 +214,16 @@ def _detect_axis(ctx, a):
     elif not cand.detected and has_friction and ag.has_integral_action(ctx.recipe, a):
         # integral action rejects a constant force, so the model leaves no offset to see; a P loop
         # keeps it, and its twin shows it (the virtual P loop's default r1c2: |t| 0.13 -> 5.70)
-        twin, t_twin, offset = _p_loop_twin(ctx, a, w)
-        cand.evidence["t_p_loop_twin"] = t_twin
-        if t_twin > cand.statistic:
+        twin, t_twin, offset, error = _p_loop_twin(ctx, a, w)
+        cand.evidence.update({"t_model": cand.statistic, "t_p_loop_twin": t_twin})
+        if error:
+            cand.evidence["p_loop_twin_error"] = error
+        elif t_twin > cand.statistic:
             cand.statistic, cand.params["mean_offset_um"] = t_twin, offset
-        if cand.detected:
-            base, cand.search, cand.reference = twin, "wide", twin
-            cand.note += " (of the model's twin without integral action)"
+            cand.note += " (of the model's refitted twin without integral action)"
+            if cand.detected:   # the effect then changes the structure, which its record says
+                base, cand.search, cand.reference = twin, "wide", twin
+                cand.params["integral_action"] = False
     if cand.detected and has_friction:
         cand.recipe = ag.add_asymmetry(base, a)
     elif cand.detected:

@@ -115,8 +115,8 @@ class Diagnosis:
         if self.axes:       # combined per-axis model: the findings of every axis
             out["per_axis"] = {a: {"effects_added": d.effects_added, "before": _per_axis(d.before),
                                    "after": _per_axis(d.after), "rounds": len(d.rounds),
-                                   "detected": sorted({c["kind"] for r in d.rounds for c in r["candidates"]
-                                                       if c["detected"]})}
+                                   "tried": sorted({c["kind"] for r in d.rounds for c in r["candidates"]
+                                                    if c["detected"]})}
                                for a, d in self.axes.items()}
         return _jsonable(out)
 

@@ -191,8 +191,8 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
             gv = trial.get("gain_val", {})
             rows.append({"round": rnd["round"], "kind": c["kind"], "axis": c["axis"],
                          "statistic": c["statistic"], "threshold": c["threshold"],
-                         "detected": ("not checked" if c.get("not_checked") else
-                                      "yes" if c["detected"] else "no"),
+                         "tried": ("not checked" if c.get("not_checked") else
+                                   "yes" if c["detected"] else "no"),
                          "held-out gain": ", ".join(f"{k}: {100 * v:+.1f} %" for k, v in gv.items()) or "–",
                          "kept": "yes" if trial.get("kept") else ("implausible: " + trial["implausible"]
                                                                   if trial.get("implausible") else "no"),
@@ -219,14 +219,14 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
 
 
 def per_axis_rows(diag):
-    """One row per axis of a combined model's diagnosis: detected candidates, kept effects and
-    the held-out RMS of the axis's channels before and after."""
+    """One row per axis of a combined model's diagnosis: the candidates tried (those past their
+    detector's gate), kept effects and the held-out RMS of the axis's channels before and after."""
     rows = []
     for a, d in diag.axes.items():
-        det = sorted({c["kind"] for r in d.rounds for c in r["candidates"] if c["detected"]})
+        tried = sorted({c["kind"] for r in d.rounds for c in r["candidates"] if c["detected"]})
         kept = [e["kind"] for e in d.effects_added]
         val_b, val_a = d.before.get("val", {}), d.after.get("val", {})
-        rows.append({"axis": a, "detected": ", ".join(det) or "nothing",
+        rows.append({"axis": a, "tried": ", ".join(tried) or "nothing",
                      "kept": ", ".join(kept) or "none",
                      "held-out RMS [µm]": "; ".join(f"{ch}: {val_b[ch]['rms_um']:.4g} -> "
                                                     f"{val_a[ch]['rms_um']:.4g}" for ch in val_b)})
