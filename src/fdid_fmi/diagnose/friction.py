@@ -26,7 +26,11 @@ Asymmetric Coulomb
     such a model's P-loop twin (:func:`.augment.without_integral_action`, refitted over the
     default space) is read as well (evidence ``t_p_loop_twin``; there 5.70); when the twin passes,
     the term goes on the twin, which is also its reference, so what the d.c. path alone gains is
-    not credited to the asymmetry.
+    not credited to the asymmetry. Calibration with the twin (``examples/diagnose_calibrate.py --effects
+    --plant2``, session 28; the statistic is the larger of the model's and the twin's |t|): the
+    virtual clean runs' twins read 0.41-1.46 (the runs' maximum stays 3.11, clean_p's P-loop
+    model, which has no twin), plant2's 9 clean runs at most 1.62 as before (twins up to 1.22),
+    its one-effect runs at most 1.69: the gate 4 passes no clean run on either plant.
 Backlash / lost motion (needs a tool-side channel)
     Statistic: |t| of the direction-aligned mean tool-side residual while moving, over moves:
     m_e = s_e * mean(r_tool over move e); lost motion b shows as m_e = -b/2 on every move.
