@@ -54,7 +54,7 @@ case "$cmd" in
     test)
         apt_install libtbb12 valgrind gcc-mingw-w64-x86-64
         setup test
-        "$VENV/bin/python" -m pytest -n 2 -q "$@"
+        "$VENV/bin/python" -m pytest -n 2 --dist worksteal -q "$@"
         ;;
     bench)
         setup test
