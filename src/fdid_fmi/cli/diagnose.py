@@ -123,8 +123,7 @@ def run(args):
             print(f"    the model of axis {e['axis']} has no integral action any more: its friction reaches "
                   f"the tracking error with a d.c. gain (a P loop), as the term needs")
     for ax, d in diag.axes.items():     # combined per-axis model: the findings of each block
-        tried = sorted({c["kind"] for r in d.rounds for c in r["candidates"] if c["detected"]})
-        print(f"  axis {ax}: tried {', '.join(tried) or 'nothing'}; "
+        print(f"  axis {ax}: tried {', '.join(d.tried) or 'nothing'}; "
               f"kept {', '.join(e['kind'] for e in d.effects_added) or 'none'}")
     for tname in diag.before:
         for ch, b in diag.before[tname].items():

@@ -98,6 +98,11 @@ class Diagnosis:
     def effects_added(self):
         return [s.effect for s in self.steps]
 
+    @property
+    def tried(self):
+        """Kinds of the candidates that passed their detector's gate in some round (refitted)."""
+        return sorted({c["kind"] for r in self.rounds for c in r["candidates"] if c["detected"]})
+
     def to_json(self):
         """The JSON summary (``effects_added``, ``before`` / ``after`` per trace and axis)."""
         from ..report import _jsonable
@@ -115,8 +120,7 @@ class Diagnosis:
         if self.axes:       # combined per-axis model: the findings of every axis
             out["per_axis"] = {a: {"effects_added": d.effects_added, "before": _per_axis(d.before),
                                    "after": _per_axis(d.after), "rounds": len(d.rounds),
-                                   "tried": sorted({c["kind"] for r in d.rounds for c in r["candidates"]
-                                                    if c["detected"]})}
+                                   "tried": d.tried}
                                for a, d in self.axes.items()}
         return _jsonable(out)
 

@@ -223,10 +223,9 @@ def per_axis_rows(diag):
     detector's gate), kept effects and the held-out RMS of the axis's channels before and after."""
     rows = []
     for a, d in diag.axes.items():
-        tried = sorted({c["kind"] for r in d.rounds for c in r["candidates"] if c["detected"]})
         kept = [e["kind"] for e in d.effects_added]
         val_b, val_a = d.before.get("val", {}), d.after.get("val", {})
-        rows.append({"axis": a, "tried": ", ".join(tried) or "nothing",
+        rows.append({"axis": a, "tried": ", ".join(d.tried) or "nothing",
                      "kept": ", ".join(kept) or "none",
                      "held-out RMS [µm]": "; ".join(f"{ch}: {val_b[ch]['rms_um']:.4g} -> "
                                                     f"{val_a[ch]['rms_um']:.4g}" for ch in val_b)})
