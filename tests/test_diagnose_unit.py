@@ -8,7 +8,7 @@ import pytest
 from fdid_fmi.diagnose import augment as ag
 from fdid_fmi.diagnose.base import motion_events
 from fdid_fmi.diagnose.periodic import constant_velocity_segments, position_spectrum
-from fdid_fmi.diagnose.residuals import delayed, residuals, with_channels
+from fdid_fmi.diagnose.residuals import delayed, residuals, split_at_standstill, with_channels
 from fdid_fmi.diagnose.whiteness import correlation_tests
 from fdid_fmi.errors import InputError
 from fdid_fmi.identify import identify_siso
@@ -35,6 +35,29 @@ def _ramp_trace(n=3000, Ts=1e-3, seed=0):
 def small_model():
     tr = _ramp_trace()
     return identify_siso(tr, maxiter=10, friction=False), tr
+
+
+def test_split_without_val_is_at_the_standstill_nearest_the_middle():
+    """The held-out part must start at rest (the free run's zero state): at the end of the pause
+    nearest the middle, not at the middle while an axis moves; without a pause, at the middle."""
+    Ts = 1e-3
+    t = np.arange(4000) * Ts
+    # x moves over [0.2, 1.2] and [2.5, 3.5] s (through the middle, 2 s), y over [1.0, 1.6] s:
+    # every axis is still over [1.6, 2.5) and [3.5, 4] s
+    ramp = lambda a, b: np.clip((t - a) / (b - a), 0, 1)
+    tr = Trace.from_arrays(t, {"x": {"cmd": 5 * ramp(0.2, 1.2) - 5 * ramp(2.5, 3.5), "act": np.zeros_like(t)},
+                               "y": {"cmd": 3 * ramp(1.0, 1.6), "act": np.zeros_like(t)}})
+    fit, held, how = split_at_standstill(tr)
+    assert held.t[0] == pytest.approx(2.5) and fit.t[-1] == pytest.approx(2.5 - Ts)
+    assert fit.n + held.n == tr.n and "standstill ending at t = 2.5 s" in how
+    # the same motion without the pause (x moves on through the middle): split at the middle
+    tr2 = Trace.from_arrays(t, {"x": {"cmd": 5 * ramp(0.2, 3.8), "act": np.zeros_like(t)}})
+    fit2, held2, how2 = split_at_standstill(tr2)
+    assert held2.t[0] == pytest.approx(2.0) and fit2.n + held2.n == tr2.n
+    assert "no standstill" in how2
+    # a pause that would leave a part shorter than min_part is not taken
+    _, held3, how3 = split_at_standstill(tr, min_part=1600)
+    assert "no standstill" in how3 and held3.t[0] == pytest.approx(2.0)
 
 
 def test_delay_line_delays_position_but_not_error_command(small_model):

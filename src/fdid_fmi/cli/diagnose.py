@@ -3,7 +3,7 @@ model lacks, add it, and report the error before and after.
 
     fdid diagnose model.json --train run1.csv --val run2.csv --map t=t_s x.cmd=xc x.act=xm \\
         -o model_plus.json --report diagnosis.html --json diagnosis.json
-    fdid diagnose emps.json --train DATA_EMPS_PULSES.mat          # halves: fit / held out
+    fdid diagnose emps.json --train DATA_EMPS_PULSES.mat          # split in two: fit / held out
 """
 from __future__ import annotations
 
@@ -27,7 +27,8 @@ def register(sub):
     p.add_argument("--train", required=True, help="trace the effects are fitted on")
     p.add_argument("--val", default=None,
                    help="held-out trace the keep criterion is judged on (default: the training trace is "
-                        "split in halves, first half fitted, second half held out)")
+                        "split at the standstill nearest its middle, or at its middle without one; the first part "
+                        "is fitted, the second held out)")
     p.add_argument("--train-range", default=None, metavar="START:STOP", help="use this time range of --train [s]")
     p.add_argument("--val-range", default=None, metavar="START:STOP", help="use this time range of --val [s]")
     p.add_argument("-o", "--output", default=None, help="write the augmented model JSON here")
@@ -100,7 +101,7 @@ def run(args):
                            (val, "--val", MIN_SAMPLES)):
         if tr is not None and tr.n < need:
             raise InputError(f"has {tr.n} samples; diagnosis needs at least {need} "
-                             f"({'fit and held-out halves of ' if need > MIN_SAMPLES else ''}"
+                             f"({'fitted and held-out parts of ' if need > MIN_SAMPLES else ''}"
                              f"{MIN_SAMPLES} samples each)", source=tr.source, column=what)
     with naming(args.model):            # refuse a model (or block) that cannot be refitted, naming the file
         for block in split_blocks(model):
@@ -111,6 +112,8 @@ def run(args):
                     max_steps=args.max_steps, maxiter=args.maxiter, exclude=args.exclude,
                     progress=lambda m: print(f"  {m}", file=sys.stderr))
     fmu = fmu_check(diag) if args.fmu else None
+    if diag.split:
+        print(diag.split)
     print(f"effects added: {[e['kind'] for e in diag.effects_added] or 'none'}")
     for e in diag.effects_added:    # what each is (a Stribeck term may have changed the friction law)
         print(f"  {e['kind']} on axis {e['axis']}: {fmt_params(e)}")

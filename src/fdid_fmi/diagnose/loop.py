@@ -50,7 +50,7 @@ from . import augment as ag
 from . import coupling, delay, friction, mode, order, periodic, whiteness
 from .base import Context, command_velocity, implausible
 from .limits import Note, NoteKind, data_limits, lost_motion_carried, not_checked, order_too_low, play_input
-from .residuals import Residuals, residuals, split_halves
+from .residuals import Residuals, residuals, split_at_standstill
 
 DETECTORS = {"friction": friction, "mode": mode, "delay": delay, "periodic": periodic,
              "coupling": coupling}
@@ -412,7 +412,8 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         (module docstring; ``Diagnosis.axes``)
     train : Trace, measured data the effects are fitted on
     val : Trace, held-out data the keep criterion is judged on. Default: ``train`` is split in
-        halves, the first to fit, the second held out.
+        two (:func:`~fdid_fmi.diagnose.residuals.split_at_standstill`: at the standstill nearest its
+        middle), the first part to fit, the second held out.
     detectors : names from DETECTORS to run (default all)
     min_gain, max_loss : keep criterion (module docstring)
     max_steps : at most this many effects added (per block of a combined model)
@@ -445,14 +446,13 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         min_gain, max_loss, max_steps, maxiter, max_delay, detectors, exclude)
     split = ""
     if val is None:
-        train, val = split_halves(train)
-        split = "no held-out trace given: first half fitted, second half held out"
+        train, val, split = split_at_standstill(train, MIN_SAMPLES)
     for tr, what in ((train, "training"), (val, "held-out")):
         if abs(tr.Ts - model.Ts) > 1e-3 * model.Ts:
             raise InputError(f"trace sampled at {tr.Ts:g} s, model at {model.Ts:g} s", source=tr.source,
                              column="Ts")
         if tr.n < MIN_SAMPLES:      # what fdid diagnose requires too (below: numpy errors, NaN tests)
-            raise InputError(f"the {what} {'half of the ' if split else ''}trace has {tr.n} samples; diagnosis "
+            raise InputError(f"the {what} {'part of the ' if split else ''}trace has {tr.n} samples; diagnosis "
                              f"needs at least {MIN_SAMPLES}", source=tr.source)
     if max_delay >= train.n // 2:       # a shift longer than the record: a broadcast error after many refits
         raise InputError(f"max_delay {max_delay} samples is not shorter than half the training trace "

@@ -125,7 +125,39 @@ def delayed(x, d):
     return out
 
 
-def split_halves(trace: Trace):
-    """(first half, second half) of a trace, for a held-out check when no validation trace is given."""
-    tm = trace.t[0] + 0.5 * (trace.t[-1] - trace.t[0])
-    return trace.slice(None, tm), trace.slice(tm + 0.5 * trace.Ts, None)
+MIN_PAUSE_S = 0.05      # a standstill: every commanded position still for at least this long
+STILL = 1e-4            # still: a step below this fraction of the axis's largest step
+
+
+def split_at_standstill(trace: Trace, min_part=2):
+    """Fitted part, held-out part and a sentence saying where the trace was split, for a held-out
+    check when no validation trace is given.
+
+    The split is at the end of the standstill (every axis's commanded position still for at least
+    ``MIN_PAUSE_S``) nearest the middle, within the middle half of the record, so that the held-out
+    part starts at rest as the model's free run does (zero state). Split while an axis moves, the
+    held-out part starts with a transient the measured drive never had: on a two-axis trace split
+    with x at 97 mm/s, 16.6 um RMS (243 um MAX) held out against 0.49 um over the whole record.
+    Without a standstill there (EMPS's reference never stops) the split is at the middle. A
+    standstill is taken only where both parts keep at least ``min_part`` samples.
+
+    Returns
+    -------
+    (Trace, Trace, str)
+    """
+    t, n = trace.t, trace.n
+    steps = [np.abs(np.diff(trace.cmd(a))) for a in trace.axes]
+    still = np.logical_and.reduce([d <= STILL * d.max() for d in steps if d.max() > 0]
+                                  or [np.ones(n - 1, bool)])
+    edges = np.flatnonzero(np.diff(np.r_[0, still.astype(np.int8), 0]))   # still runs [a, b)
+    runs = [(a, b) for a, b in edges.reshape(-1, 2)
+            if t[b] - t[a] >= MIN_PAUSE_S and max(n // 4, min_part) <= b <= min(3 * n // 4, n - min_part)]
+    if runs:
+        k = min((b for _, b in runs), key=lambda b: abs(b - n // 2))     # the last still sample
+        how = f"split at the standstill ending at t = {t[k]:g} s"
+    else:
+        k = int(np.searchsorted(t, t[0] + 0.5 * (t[-1] - t[0]) + 0.5 * trace.Ts))
+        how = (f"split at its middle, t = {t[k]:g} s (no standstill of {MIN_PAUSE_S:g} s in the "
+               "middle half of the record: the held-out part starts moving)")
+    return (trace.slice(None, t[k] - 0.5 * trace.Ts), trace.slice(t[k], None),
+            f"no held-out trace given: first part fitted, second held out, {how}")
