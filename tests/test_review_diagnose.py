@@ -65,7 +65,7 @@ def test_diagnose_refuses_a_trace_too_short_to_diagnose(small):
     # before: a numpy ValueError from the whiteness test (lags beyond the record)
     with pytest.raises(InputError, match="the training trace has 11 samples; diagnosis needs at least 200"):
         diagnose(model, short, va, maxiter=2, max_steps=1)
-    with pytest.raises(InputError, match="the training half of the trace has 150 samples"):
+    with pytest.raises(InputError, match="the training part of the trace has 150 samples"):
         diagnose(model, tr.slice(tr.t[1000], tr.t[1299]), maxiter=2, max_steps=1)
 
 
