@@ -22,7 +22,7 @@ from plant2_fits import backlash_tool_r1c1
 
 def _diagnose(name, seed=0, held_out=True, **kw):
     """plant2 scenario: the SISO pole search on its training trace, diagnosed (held out: its
-    reversals trace, or the second half of the training trace)."""
+    reversals trace, or the part of the training trace after its standstill nearest the middle)."""
     train, vals, truth = p2.scenario(name, seed=seed)
     va = next(v for v in vals if v.meta["name"] == "reversals") if held_out else None
     with warnings.catch_warnings():

@@ -38,25 +38,29 @@ def small_model():
 
 
 def test_split_without_val_is_at_the_standstill_nearest_the_middle():
-    """The held-out part must start at rest (the free run's zero state): at the end of the pause
-    nearest the middle, not at the middle while an axis moves; without a pause, at the middle."""
+    """The held-out part must start at rest (the free run's start): it opens with the last two
+    samples of the standstill (every commanded axis still for 50 ms or more) that ends nearest the
+    middle, not at the middle while an axis moves; without such a standstill, at the middle."""
     Ts = 1e-3
     t = np.arange(4000) * Ts
-    # x moves over [0.2, 1.2] and [2.5, 3.5] s (through the middle, 2 s), y over [1.0, 1.6] s:
-    # every axis is still over [1.6, 2.5) and [3.5, 4] s
     ramp = lambda a, b: np.clip((t - a) / (b - a), 0, 1)
-    tr = Trace.from_arrays(t, {"x": {"cmd": 5 * ramp(0.2, 1.2) - 5 * ramp(2.5, 3.5), "act": np.zeros_like(t)},
-                               "y": {"cmd": 3 * ramp(1.0, 1.6), "act": np.zeros_like(t)}})
+    zero = np.zeros_like(t)
+    # every axis still over [1.2, 1.4), [2.1, 2.4) and [2.7, 2.9) s (ends 600, 400, 900 ms from the
+    # middle), and over [1.95, 1.98) and [2.47, 2.5), too short; x alone is still over [1.5, 2.5)
+    x = 5 * ramp(0.2, 1.2) + ramp(1.4, 1.5) - 2 * ramp(2.5, 2.7) - 2 * ramp(2.9, 3.5)
+    y = ramp(1.5, 1.95) + 2 * ramp(1.98, 2.1) + ramp(2.4, 2.47)
+    tr = Trace.from_arrays(t, {"x": {"cmd": x, "act": zero}, "y": {"cmd": y, "act": zero},
+                               "z": {"act": zero}})            # an axis without a command is no bar
     fit, held, how = split_at_standstill(tr)
-    assert held.t[0] == pytest.approx(2.5) and fit.t[-1] == pytest.approx(2.5 - Ts)
-    assert fit.n + held.n == tr.n and "standstill ending at t = 2.5 s" in how
-    # the same motion without the pause (x moves on through the middle): split at the middle
-    tr2 = Trace.from_arrays(t, {"x": {"cmd": 5 * ramp(0.2, 3.8), "act": np.zeros_like(t)}})
+    assert held.t[0] == pytest.approx(2.399) and fit.t[-1] == pytest.approx(2.398)
+    assert fit.n + held.n == tr.n and "standstill ending at t = 2.4 s" in how
+    assert held.cmd("x")[0] == held.cmd("x")[1] and held.cmd("y")[0] == held.cmd("y")[1]
+    # x moving on through the middle, no standstill: split at the middle
+    tr2 = Trace.from_arrays(t, {"x": {"cmd": 5 * ramp(0.2, 3.8), "act": zero}})
     fit2, held2, how2 = split_at_standstill(tr2)
-    assert held2.t[0] == pytest.approx(2.0) and fit2.n + held2.n == tr2.n
-    assert "no standstill" in how2
-    # a pause that would leave a part shorter than min_part is not taken
-    _, held3, how3 = split_at_standstill(tr, min_part=1600)
+    assert held2.t[0] == pytest.approx(2.0) and fit2.n + held2.n == tr2.n and "no standstill" in how2
+    # a standstill that would leave a part shorter than min_part is not taken
+    _, held3, how3 = split_at_standstill(tr, min_part=1700)
     assert "no standstill" in how3 and held3.t[0] == pytest.approx(2.0)
 
 
