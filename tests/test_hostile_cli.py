@@ -220,6 +220,9 @@ def test_bad_option_values_give_one_line(capsys, files, tmp_path, opts, words):
     (["align", "c.csv", "--window", "0", "-o", "a.csv"], ["--window", "> 0"]),
     (["align", "c.csv", "--lowpass", "-3", "-o", "a.csv"], ["--lowpass", "> 0"]),     # helper-39: taken
     (["align", "c.csv", "--lowpass", "nan", "-o", "a.csv"], ["--lowpass", "> 0"]),
+    # a trace whose time starts before its trigger: argparse takes '-0.5:2' for an option
+    (["diagnose", "m.json", "--train", "t.csv", "--train-range", "-0.5:2"], ["--train-range", "--option=VALUE"]),
+    (["simulate", "m.json", "t.csv", "--range", "-0.5:2"], ["--range", "--option=VALUE"]),
     # an FMU with no binaries was exported as success; pythonfmu ignored --platforms
     (["export", "m.json", "--platforms", ","], ["--platforms", "no platform"]),
     (["export", "m.json", "--backend", "python", "--platforms", "win64"], ["--platforms", "--backend c"]),

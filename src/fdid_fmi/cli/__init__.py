@@ -44,6 +44,8 @@ class _Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
 
     def error(self, message):
+        if message.endswith("expected one argument"):   # argparse reads '-0.5:2' as an option
+            message += "; a value that starts with '-' is given as --option=VALUE (--range=-0.5:2)"
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
