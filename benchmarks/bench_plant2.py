@@ -194,11 +194,13 @@ def base_model(tr, ax, base):
                    "real_hz": c.real_hz}
 
 
-def diagnosis(name, base="thesis"):
+def diagnosis(name, base="thesis", no_val=False):
     train, vals, truth = p2.scenario(name)
     ax = truth["axis"]
     tr = train[0]
-    va = next(v for v in vals if v.meta["name"] == "reversals")
+    # held out: the reversals trace, or (no_val, as `fdid diagnose --train` alone) the training
+    # trace's part after its standstill nearest the middle
+    va = None if no_val else next(v for v in vals if v.meta["name"] == "reversals")
     print(f"\n[diagnose {name}] truth: {truth['effect']} {truth['effect_params']}", flush=True)
     out = {"scenario": name, "axis": ax, "truth": truth["effect"], "truth_params": truth["effect_params"]}
     if truth["effect"] == "mode":       # what a fitted mode is compared with: the closed loop's pair
@@ -214,6 +216,7 @@ def diagnosis(name, base="thesis"):
         traceback.print_exc()
         return out
     out["wall_s"] = t
+    out["split"] = d.split
     out["named"] = [{k: v for k, v in e.items() if isinstance(v, (int, float, str, bool)) or v is None}
                     for e in d.effects_added]
     out["before_val"] = d.before["val"]
@@ -391,6 +394,8 @@ def main():
     ap.add_argument("--skip-calibration", action="store_true")
     ap.add_argument("--diagnose-base", choices=("thesis", "default"), default="thesis",
                     help="model diagnosed: the thesis's rigid pole search, or fdid identify's default")
+    ap.add_argument("--no-val", action="store_true",
+                    help="diagnose without a held-out trace (the training trace split at its standstill)")
     ap.add_argument("--out", default="bench_plant2.json", help="file name in benchmarks/results")
     ap.add_argument("--print-only", nargs="*", metavar="JSON",
                     help="print the tables of earlier runs (files in benchmarks/results, merged in order)")
@@ -413,7 +418,7 @@ def main():
     # identification and the default diagnosis base (identify_auto) use two worker processes
     res = {"single_core": args.skip_identification and args.diagnose_base == "thesis", "quick": args.quick,
            "scenarios": names, "code": code_state(),
-           "diagnose_base": args.diagnose_base, "identification": [], "diagnosis": []}
+           "diagnose_base": args.diagnose_base, "no_val": args.no_val, "identification": [], "diagnosis": []}
     print(f"code: {res['code']}", flush=True)
     path = OUT / args.out
 
@@ -425,7 +430,7 @@ def main():
         save()
     if not args.skip_diagnose:
         for name in names:
-            res["diagnosis"].append(diagnosis(name, args.diagnose_base))
+            res["diagnosis"].append(diagnosis(name, args.diagnose_base, args.no_val))
             save()
     # the thresholds were calibrated on the thesis models: their transfer is measured on those
     if not args.skip_calibration and not args.skip_diagnose and args.diagnose_base == "thesis":

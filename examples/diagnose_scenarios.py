@@ -6,9 +6,11 @@ through exported FMUs. EMPS: model from DATA_EMPS (``qg`` only, no integral acti
 DATA_EMPS_PULSES, first half fitted, second half held out. Prints the README table and writes one
 HTML report per case. ``--default-path``: the virtual runs' models are ``fdid identify``'s default
 (the structure chosen from the data, ``identify_auto``) and ``diagnose`` runs with its defaults,
-as a user runs them (about 10 min on 2 cores instead of 3; EMPS as without it).
+as a user runs them (about 10 min on 2 cores instead of 3; EMPS as without it). ``--no-val``: no
+held-out trace, as ``fdid diagnose --train`` alone (the training trace split at its standstill
+nearest the middle; the "held-out" columns are its second part).
 
-    .venv/bin/python examples/diagnose_scenarios.py [OUT_DIR] [--default-path]
+    .venv/bin/python examples/diagnose_scenarios.py [OUT_DIR] [--default-path] [--no-val]
 """
 import argparse
 import time
@@ -27,6 +29,8 @@ _ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
 _ap.add_argument("out", nargs="?", default="diagnose_out", help="folder for the reports and FMUs (default diagnose_out)")
 _ap.add_argument("--default-path", action="store_true",
                  help="models by fdid identify's default structure choice, diagnose with its defaults")
+_ap.add_argument("--no-val", action="store_true",
+                 help="no held-out trace: the training trace split at its standstill nearest the middle")
 _args = _ap.parse_args()
 warnings.simplefilter("ignore")
 out = Path(_args.out)
@@ -67,6 +71,7 @@ for name in ("clean", "clean_fast", "clean_xy", "stribeck", "backlash", "periodi
              "coupling", "clean_p", "asymmetric"):
     t0 = time.perf_counter()
     tr, va = scenario(name)
+    va = None if _args.no_val else va
     if _args.default_path:
         m = identify_auto(tr, "x", seed=0)
         d = diagnose(m, tr, va)
