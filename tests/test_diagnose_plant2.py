@@ -70,6 +70,24 @@ def test_clean_plant2_run_is_not_suspected(name):
     assert d.effects_added == []            # the Stribeck statistic passes on LuGre; no refit is kept
 
 
+def test_without_val_the_refits_are_judged_against_the_null_refit():
+    """No held-out trace: the held-out part lies in the trace the model was identified on, so the
+    given model's figures there are in-sample; a refit on the first part is judged against the
+    same structure refitted there (coupling: 20 % better), not against the given model (which
+    it lost to by 29 %, so nothing was kept), and what is kept is then refitted on the whole
+    trace (measured: first part 0.427 -> 0.305 um, second 0.267 -> 0.280 um, both in-sample)."""
+    d = _diagnose("coupling", held_out=False, detectors=["coupling"], max_steps=1)
+    assert [e["kind"] for e in d.effects_added] == ["coupling"]
+    trial = d.rounds[0]["trials"][0]
+    assert trial["kept"] and trial["gain_val"]["x"] >= 0.05
+    assert "refitted on the whole trace" in d.split
+    # the final model is the whole-trace refit: better over the whole trace than the given model
+    whole = [d.before[k]["x"]["rms_um"] ** 2 * n for k, n in (("train", d.train.n), ("val", d.val.n))]
+    after = [d.after[k]["x"]["rms_um"] ** 2 * n for k, n in (("train", d.train.n), ("val", d.val.n))]
+    assert sum(after) < 0.8 * sum(whole)
+    assert d.final.input_index("external", "x") is not None
+
+
 def test_stribeck_on_plant2_is_named_in_the_play_law(tmp_path, capsys):
     """plant2's breakaway (LuGre, 90 N over a 40 N Coulomb level, v_s 2.5 mm/s) holds the axis at
     rest: the sat-law Stribeck refit is worse held out, the play-law one is kept, against the play
