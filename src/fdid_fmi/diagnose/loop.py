@@ -507,8 +507,8 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         return _combined(model, blocks, train, val, split, kw, say, t0, whole)
     # without a held-out trace the held-out part is, as a rule, data the given model was
     # identified on: its figures there are in-sample and no reference for refits fitted on the
-    # first part (plant2's default path: the order check's refits lost 10-107 % held out against
-    # them); the null refit, fitted on the first part as the candidates are, is the reference then,
+    # first part (plant2's default path: the order check's refits lost 10-107 % held out to them on
+    # 10 of 11 runs); the null refit, fitted on the first part as the candidates are, is the reference,
     # and what is kept is refitted on the whole trace at the end (_refit_on_whole)
     given_in_sample = whole is not None
     recipe = ag.recipe_from_model(model, reserved=_reserved)
