@@ -28,7 +28,10 @@ Keep criterion: on the held-out trace, the RMS residual of some scored channel (
 position, and its tool side when measured) falls by at least ``min_gain`` (default 5 %) relative
 to the better of the current model and the null refit, and no scored channel rises by more than
 ``max_loss`` (default 1 %). The loop stops when no candidate is detected or none is kept, or after
-``max_steps`` effects.
+``max_steps`` effects. Without a held-out trace (the training trace split at a standstill) the
+given model's figures on the held-out part are, as a rule, in-sample: the first round's
+reference is then the null refit alone, and what is kept is refitted on the whole trace at the
+end (:func:`_refit_on_whole`).
 
 Combined per-axis models (``fdid identify`` on a trace with several axes: ``DriveModel.combine``,
 ``identification["blocks"]``) are diagnosed block by block: :func:`split_blocks` rebuilds each
