@@ -407,6 +407,7 @@ def _refit_on_whole(recipe, model, res, whole, train, val, maxiter, added, say):
                    from_current=True)
     except InputError:
         return model, res
+
     def score(mod):             # mean RMS over the scored channels of the whole trace
         return float(np.mean([v["rms_um"] for v in residuals(mod, whole).table().values()]))
 
