@@ -114,6 +114,13 @@ def run(args):
     fmu = fmu_check(diag) if args.fmu else None
     if diag.split:
         print(diag.split)
+    for ax, d in (diag.axes or {"": diag}).items():     # what the final refit on the whole trace did
+        if d.whole_refit:
+            w = d.whole_refit
+            print(f"  {'axis ' + ax + ': ' if ax else ''}refit of the augmented model on the whole trace "
+                  + ("taken" if w["taken"] else f"not taken ({w.get('error') or 'a channel got worse'})")
+                  + "".join(f", {ch} RMS {w['whole_before'][ch]['rms_um']:.4g} -> {w['whole_after'][ch]['rms_um']:.4g} um"
+                            for ch in w.get("whole_before", {})))
     print(f"effects added: {[e['kind'] for e in diag.effects_added] or 'none'}")
     for e in diag.effects_added:    # what each is (a Stribeck term may have changed the friction law)
         print(f"  {e['kind']} on axis {e['axis']}: {fmt_params(e)}")

@@ -29,9 +29,10 @@ position, and its tool side when measured) falls by at least ``min_gain`` (defau
 to the better of the current model and the null refit, and no scored channel rises by more than
 ``max_loss`` (default 1 %). The loop stops when no candidate is detected or none is kept, or after
 ``max_steps`` effects. Without a held-out trace (the training trace split at a standstill) the
-given model's figures on the held-out part are, as a rule, in-sample: the first round's
-reference is then the null refit alone, and what is kept is refitted on the whole trace at the
-end (:func:`_refit_on_whole`).
+given model's figures on the held-out part are, as a rule, in-sample: it is then no reference
+(until a refit on the first part replaces it) and the null refit alone is (for a locked refit:
+its reference refit; the given model only when neither can be fitted), and what is kept is
+refitted on the whole trace at the end when no channel gets worse there (:func:`_refit_on_whole`).
 
 Combined per-axis models (``fdid identify`` on a trace with several axes: ``DriveModel.combine``,
 ``identification["blocks"]``) are diagnosed block by block: :func:`split_blocks` rebuilds each
@@ -94,6 +95,7 @@ class Diagnosis:
     settings: dict = field(default_factory=dict)
     wall_time_s: float = 0.0
     split: str = ""
+    whole_refit: dict = field(default_factory=dict)  # no held-out trace: the final refit on the whole
     axes: dict = field(default_factory=dict)        # combined model: axis -> Diagnosis of its block
     notes: list = field(default_factory=list)       # limits.Note (limits.NoteKind)
 
@@ -117,13 +119,13 @@ class Diagnosis:
             "rounds": [{k: v for k, v in r.items() if k != "plots"} for r in self.rounds],
             "tests": {"before": self.tests_before, "after": self.tests_after},
             "criterion": {"min_gain": self.settings.get("min_gain"), "max_loss": self.settings.get("max_loss")},
-            "split": self.split, "wall_time_s": self.wall_time_s,
+            "split": self.split, "whole_refit": self.whole_refit, "wall_time_s": self.wall_time_s,
             "notes": [n.to_dict() for n in self.notes],
         }
         if self.axes:       # combined per-axis model: the findings of every axis
             out["per_axis"] = {a: {"effects_added": d.effects_added, "before": _per_axis(d.before),
                                    "after": _per_axis(d.after), "rounds": len(d.rounds),
-                                   "tried": d.tried}
+                                   "tried": d.tried, "whole_refit": d.whole_refit}
                                for a, d in self.axes.items()}
         return _jsonable(out)
 
@@ -395,25 +397,31 @@ def _left_as_is(model, train, val, kw, split, note):
     return d
 
 
-def _refit_on_whole(recipe, model, res, whole, train, val, maxiter, added, say):
+def _refit_on_whole(recipe, model, res, whole, train, val, maxiter, max_loss, diag, say):
     """The augmented structure refitted on the whole trace, its poles searched from the kept
     model's, when its free run there is better: the effects were chosen on the first part, the
     given model was identified on the whole (as a rule), and a model fitted on half the moves
     predicts the other half worse (plant2's coupling scenario: the null refit 61 % worse held out
-    than the given model). Returns (model, residuals on the two parts)."""
+    than the given model). Taken when no channel's free-run RMS over the whole trace rises by
+    more than ``max_loss`` and one falls; the kept effects are then described from it.
+    ``diag.whole_refit`` records what happened. Returns (model, residuals on the two parts)."""
     say("refit of the augmented model on the whole trace")
     try:
         m = ag.fit(recipe, ag.model_velocity_traces(model, [whole]), search="local", maxiter=maxiter,
                    from_current=True)
-    except InputError:
+    except InputError as exc:
+        diag.whole_refit = {"taken": False, "error": str(exc)}
         return model, res
-
-    def score(mod):             # mean RMS over the scored channels of the whole trace
-        return float(np.mean([v["rms_um"] for v in residuals(mod, whole).table().values()]))
-
-    if not score(m) <= score(model):
+    before, after = residuals(model, whole).table(), residuals(m, whole).table()
+    g = _gain(before, after)
+    diag.whole_refit = {"taken": bool(min(g.values()) >= -max_loss and max(g.values()) > 0),
+                        "whole_before": before, "whole_after": after}
+    if not diag.whole_refit["taken"]:
         return model, res
+    added = len(diag.steps)
     m.effects[-added:] = [ag.describe_fitted(m, e) for e in m.effects[-added:]]
+    for st, e in zip(diag.steps, m.effects[-added:]):
+        st.effect = e
     return m, {"train": residuals(m, train), "val": residuals(m, val)}
 
 
@@ -515,6 +523,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     # 10 of 11 runs); the null refit, fitted on the first part as the candidates are, is the reference,
     # and what is kept is refitted on the whole trace at the end (_refit_on_whole)
     given_in_sample = whole is not None
+    in_sample = given_in_sample     # the current model predicts the held-out part in-sample
     recipe = ag.recipe_from_model(model, reserved=_reserved)
     current = model
     res0 = {"train": residuals(model, train), "val": residuals(model, val)}
@@ -549,8 +558,9 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         except InputError as exc:   # no feasible refit of the same structure: the current model
             rnd["null_refit_error"] = str(exc)
             tab_null = tab_cur
-        # the current model is a reference unless it is the given one and saw the held-out part
-        cur = dict.fromkeys(tab_cur) if given_in_sample and current is model else tab_cur
+        # the current model is a reference unless it saw the held-out part (the given model, or a
+        # locked refit composed with it, which keeps its predictions of the other channels)
+        cur = dict.fromkeys(tab_cur) if in_sample else tab_cur
         ref_val, ref_train = _better(cur["val"], tab_null["val"]), _better(cur["train"], tab_null["train"])
         tab_plus = None
         rivals = any(c.kind in ORDER_RIVALS for c in detected)
@@ -596,7 +606,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
                 rtr, rva = _better(rtr, tab_plus["train"]), _better(rva, tab_plus["val"])
             # candidates are ranked against one baseline; a reference only decides the keeping
             # (a play-law Stribeck's gain over the play law alone is no measure against the others)
-            rank = max(_gain(rtr, tt).values())
+            rank = max(_gain(tab_cur["train"] if rtr is None else rtr, tt).values())
             if c.reference is not None:     # the effect must also beat its reference structure
                 try:
                     mr = ag.fit(c.reference, vel_train, search=c.search, maxiter=maxiter,
@@ -613,7 +623,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
             keep = max(g_val.values()) >= min_gain and min(g_val.values()) >= -max_loss
             effect = ag.describe_fitted(m, m.effects[-1])
             why = implausible(effect)
-            trials.append((rank, c, m, rt, rv, keep and not why))
+            trials.append((rank, c, m, rt, rv, keep and not why, kept_base))
             rnd["trials"].append({"kind": c.kind, "axis": c.axis, "params": c.params, "fitted": effect,
                                   "gain_train": g_train, "gain_val": g_val, "kept": False,
                                   "criterion_met": bool(keep), "implausible": why})
@@ -622,7 +632,8 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         if chosen is None:
             say(f"round {step + 1}: no candidate met the keep criterion")
             break
-        _, c, m, rt, rv, _ = chosen
+        _, c, m, rt, rv, _, kept_base = chosen
+        in_sample = in_sample and kept_base
         for tr_ in rnd["trials"]:
             if (tr_.get("kind"), tr_.get("axis"), tr_.get("params")) == (c.kind, c.axis, c.params):
                 tr_["kept"] = True
@@ -640,7 +651,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         current, res_cur = m, res_new
     if given_in_sample and diag.steps:
         current, res_cur = _refit_on_whole(recipe, current, res_cur, whole, train, val, maxiter,
-                                           len(diag.steps), say)
+                                           max_loss, diag, say)
     diag.final = current
     diag.after = {k: r.table() for k, r in res_cur.items()}
     diag.residual_after = res_cur

@@ -158,7 +158,8 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
     rep.add_text(
         f"Residual = measured - free-run prediction. An effect is kept only if the held-out RMS of some "
         f"scored channel falls by at least {100 * s['min_gain']:.0f} % (against the better of the current "
-        f"model and the same refit without the effect) and no channel rises by more than "
+        f"model and the same refit without the effect; without a held-out trace, in the first round, "
+        f"against that refit alone) and no channel rises by more than "
         f"{100 * s['max_loss']:.0f} %. {diag.split}")
     rep.add_table("errors", error_rows(diag.before, diag.after, fmu),
                   caption="free-run error before (given model) and after (every kept effect)")
