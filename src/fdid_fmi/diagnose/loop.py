@@ -522,8 +522,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     # first part (plant2's default path: the order check's refits lost 10-107 % held out to them on
     # 10 of 11 runs); the null refit, fitted on the first part as the candidates are, is the reference,
     # and what is kept is refitted on the whole trace at the end (_refit_on_whole)
-    given_in_sample = whole is not None
-    in_sample = given_in_sample     # the current model predicts the held-out part in-sample
+    in_sample = whole is not None   # the current model predicts the held-out part in-sample
     recipe = ag.recipe_from_model(model, reserved=_reserved)
     current = model
     res0 = {"train": residuals(model, train), "val": residuals(model, val)}
@@ -649,7 +648,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         recipe = ag.updated_recipe(c.recipe, m)
         recipe.effects = list(m.effects)
         current, res_cur = m, res_new
-    if given_in_sample and diag.steps:
+    if whole is not None and diag.steps:
         current, res_cur = _refit_on_whole(recipe, current, res_cur, whole, train, val, maxiter,
                                            max_loss, diag, say)
     diag.final = current
