@@ -54,7 +54,8 @@ from fdid_fmi.diagnose.base import Context  # noqa: E402
 from fdid_fmi.diagnose.limits import NoteKind  # noqa: E402
 from fdid_fmi.diagnose.residuals import residuals  # noqa: E402
 from fdid_fmi.identify import (identify_full_ls, identify_quasi_static, identify_siso)  # noqa: E402
-from fdid_fmi.identify.choose_structure import StructureChoice, choose, fit_structures, identify_auto  # noqa: E402
+from fdid_fmi.identify.choose_structure import (StructureChoice, choose, fit_structures, free_run_rms,  # noqa: E402
+                                                identify_auto, scored_outputs)
 from fdid_fmi.metrics import rms  # noqa: E402
 from fdid_fmi.simulate import simulate  # noqa: E402
 from plant2 import scenarios as p2  # noqa: E402
@@ -129,6 +130,7 @@ def identification(name):
         # (fit_structures) and the choice rule picks one; the exhaustive search over the same
         # candidates is their validation RMS
         t, (results, probes) = timed(lambda: fit_structures(tr, ax, seed=0, workers=2))
+        outputs = scored_outputs([tr], ax)
         chosen = choose([r for r, _ in results])
         res["structure_choice_wall_s"] = t
         print(f"  structure choice: {t:.0f} s, chosen {chosen.label} {chosen.same_sample}", flush=True)
@@ -137,6 +139,9 @@ def identification(name):
             entry = {"train_free_run_um": r.free_run_rms_mm * 1e3, "parameters": r.parameters,
                      "on_bound": r.on_bound, "real_hz": r.real_hz, "complex_hz_zeta": r.complex_hz_zeta}
             entry["val_rms_um"] = _val_rms(m, vals, ax) if m is not None else {}
+            if outputs != ["error"]:    # the choice's own score: error and tool side, one RMS
+                entry["val_scored_um"] = {v.meta["name"]: free_run_rms(m, [v], ax, outputs) * 1e3
+                                          for v in vals} if m is not None else {}
             res["structures"][key] = entry
             if r is chosen:
                 res["methods"]["pole_search"] = dict(entry, chosen=key)
@@ -160,6 +165,13 @@ def identification(name):
     res["ratio_best"] = {k: (v(ok[best], k) / base[k] if best and base[k] else None) for k in names}
     res["ratio_default_to_best"] = {k: (v(cands["default"], k) / v(ok[best], k) if best and v(cands["default"], k)
                                         else None) for k in names}
+    if "val_scored_um" in cands["default"]:     # the best by the score the choice uses (tool side too)
+        sc = {key: d["val_scored_um"] for key, d in res["structures"].items()
+              if len(d.get("val_scored_um") or {}) == len(names)}
+        best_s = min(sc, key=lambda key: np.mean(list(sc[key].values())))
+        res["best_structure_scored"] = best_s
+        res["ratio_default_to_best_scored"] = {k: cands["default"]["val_scored_um"][k] / sc[best_s][k]
+                                               for k in names}
     return res
 
 
@@ -334,6 +346,11 @@ def print_tables(res):
             print(f"| {r['scenario']} | {r['Ts'] * 1e3:g} | {k} | {r['e_rms_um'][k]:.1f} | {_f(ps.get(k))} | {chosen} | "
                   f"{b} | {_f(bd.get(k))} | {_f(fl.get(k))} | {_f(qs.get(k))} | {_f(r['ratio_default'].get(k))} | "
                   f"{_f(r['ratio_best'].get(k))} | {_f((r.get('ratio_default_to_best') or {}).get(k))} |")
+    for r in res["identification"]:
+        if r.get("ratio_default_to_best_scored"):   # the choice scored error and tool side
+            print(f"\n{r['scenario']}, scored as the choice scores (error and tool side): best "
+                  f"{r['best_structure_scored']}, default / best "
+                  + ", ".join(f"{k} {x:.2f}" for k, x in r["ratio_default_to_best_scored"].items()))
     if res.get("diagnosis"):
         # a row diagnosed on fdid identify's default model records that model (merged files may mix bases)
         bases = {"fdid identify's default model (structure chosen)" if d.get("model")
