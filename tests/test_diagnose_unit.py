@@ -114,6 +114,18 @@ def test_mask_shift_keeps_low_powers_and_extends_full_numerators():
     assert ag._shift_mask({1, 0}, 3, 5) == frozenset({0, 1})
 
 
+def test_a_mode_multiplies_every_numerator_by_a_quadratic(small_model):
+    assert ag._times_quadratic({1}, 5) == frozenset({1, 2, 3})          # d0 s -> s (d0 + d1 s + d2 s^2)
+    assert ag._times_quadratic({3, 2, 1}, 5) == frozenset({1, 2, 3, 4, 5})
+    assert ag._times_quadratic({1, 0}, 5) == frozenset({0, 1, 2, 3})    # the d.c. term stays
+    assert ag._times_quadratic({4, 1}, 5) == frozenset({1, 2, 3, 4, 5})  # capped at the new order
+    model, _ = small_model
+    rec = ag.recipe_from_model(model)
+    r = ag.add_mode(rec, "x", 40.0)
+    assert r.order == rec.order + 2
+    assert r.masks == {k: ag._times_quadratic(v, r.order) for k, v in rec.masks.items()}
+
+
 def test_recipe_needs_pole_search_model(small_model):
     model, _ = small_model
     m = model.copy()
