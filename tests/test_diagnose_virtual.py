@@ -195,3 +195,18 @@ def test_dead_time_statistic_separates_a_delay_from_its_clean_twin(name, delayed
     else:           # measured: 1.0, no shift helps (5.8 at no shift, 11 at one sample)
         assert not c.detected and c.params["samples"] == 0
         assert min(chi2[1:]) > chi2[0]
+
+
+def test_a_heavily_damped_pair_is_not_named_a_mode():
+    """A mode multiplies every numerator by a quadratic (``augment._times_quadratic``), so a
+    heavily damped pair can act as a Padé approximant of a dead time: on the 3-sample recording
+    delay the mode's refit was kept (190 Hz, damping 0.47, 36 % better held out). A mode is a
+    resonance (``base.MODE_MAX_DAMPING``: a 3 dB peak), so that refit is implausible and nothing
+    is named; the order note stays."""
+    from fdid_fmi.diagnose.base import MODE_MAX_DAMPING
+    d, _ = _run("delay", detectors=["mode", "delay"], max_steps=1)
+    assert d.effects_added == []
+    (mode,) = [t for r in d.rounds for t in r["trials"] if t["kind"] == "mode"]
+    assert mode["criterion_met"] and mode["fitted"]["damping"] > MODE_MAX_DAMPING
+    assert "not lightly damped" in mode["implausible"]
+    assert d.notes[0].kind == NoteKind.ORDER_TOO_LOW
