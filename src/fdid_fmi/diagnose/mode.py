@@ -13,7 +13,8 @@ ratio |H(f)| / background(f) (running median of |H| over +-``MEDIAN_HZ``) among 
 frequencies, parabola-refined. The augmentation searches one more complex pole pair within
 +-15 % of it (damping 0.005-0.5) with the other poles in a local window, every numerator
 multiplied by a quadratic (the drive train's anti-resonance, ``augment._times_quadratic``); the
-fitted pair's frequency and damping are reported. A dead time also leaves a command-coherent residual: the two
+fitted pair's frequency and damping are reported, and it is kept only as a resonance
+(``base.MODE_MAX_DAMPING``). A dead time also leaves a command-coherent residual: the two
 candidates are both refitted and the better one on training data is tried first (loop.py).
 
 Threshold ``COHERENT_FRACTION`` (calibration: ``examples/diagnose_calibrate.py --effects
