@@ -119,11 +119,13 @@ def test_a_mode_multiplies_every_numerator_by_a_quadratic(small_model):
     assert ag._times_quadratic({3, 2, 1}, 5) == frozenset({1, 2, 3, 4, 5})
     assert ag._times_quadratic({1, 0}, 5) == frozenset({0, 1, 2, 3})    # the d.c. term stays
     assert ag._times_quadratic({4, 1}, 5) == frozenset({1, 2, 3, 4, 5})  # capped at the new order
-    model, _ = small_model
-    rec = ag.recipe_from_model(model)
+    _, tr = small_model
+    rec = ag.recipe_from_model(identify_siso(tr, maxiter=10))      # with the friction path d0 s
+    assert rec.masks == {("x_error", "x_cmd"): {1, 2, 3}, ("x_error", "x_dnf"): {1}}
     r = ag.add_mode(rec, "x", 40.0)
     assert r.order == rec.order + 2
-    assert r.masks == {k: ag._times_quadratic(v, r.order) for k, v in rec.masks.items()}
+    # the friction path s d0 becomes s (d0 + d1 s + d2 s^2), not s d0 shifted (_shift_mask: {1})
+    assert r.masks == {("x_error", "x_cmd"): {1, 2, 3, 4, 5}, ("x_error", "x_dnf"): {1, 2, 3}}
 
 
 def test_recipe_needs_pole_search_model(small_model):

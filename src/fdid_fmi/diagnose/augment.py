@@ -165,9 +165,10 @@ def _shift_mask(powers, n_old, n_new):
 
 def _times_quadratic(powers, n_new):
     """The s-powers of a numerator multiplied by a general quadratic a s^2 + b s + c: a mode is a
-    compliant drive train, and every force reaches the measured side through it, so the load's
-    anti-resonance zeros enter every path (two-mass motor side, force F to position:
-    (m_t s^2 + c s + k) / (s^2 (m_m m_t s^2 + (m_m + m_t)(c s + k)))). The rigid body's friction
+    compliant drive train, and a path through it gains up to two zeros (a force on the motor
+    side, two-mass, to the motor position: (m_t s^2 + c s + k) / (s^2 (m_m m_t s^2 + (m_m + m_t)
+    (c s + k))), the load's anti-resonance; a force on the tool side: c s + k, a general
+    quadratic with a = 0). The rigid body's friction
     path d0 s (Eqn 4.10) becomes s (d0 + d1 s + d2 s^2); its lowest power, the d.c. meaning,
     is kept. Found on plant2's mode (the measuring plant): with d0 s alone the fitted pair sat
     5 % below the closed loop's (README)."""
@@ -647,9 +648,10 @@ def add_mode(recipe, axis, frequency_hz, rel=0.15, zeta=(0.005, 0.5)):
 
 def add_real_pole(recipe, frequency_hz):
     """One more real pole at ``frequency_hz``: the structure of the order check (:mod:`.order`),
-    not an effect (nothing is added to ``effects``). Numerators keep their s-powers as for a mode
-    (:func:`_shift_mask`), so a strictly proper path gains one degree of relative order: the new
-    structure does not contain the given one exactly.
+    not an effect (nothing is added to ``effects``). Numerators keep their s-powers
+    (:func:`_shift_mask`; a mode multiplies them by a quadratic, :func:`_times_quadratic`), so a
+    strictly proper path gains one degree of relative order: the new structure does not contain
+    the given one exactly.
     """
     r = recipe.copy()
     n_old = r.order
