@@ -168,10 +168,10 @@ def _times_quadratic(powers, n_new):
     compliant drive train, and a path through it gains up to two zeros (a force on the motor
     side, two-mass, to the motor position: (m_t s^2 + c s + k) / (s^2 (m_m m_t s^2 + (m_m + m_t)
     (c s + k))), the load's anti-resonance; a force on the tool side: c s + k, a general
-    quadratic with a = 0). The rigid body's friction
-    path d0 s (Eqn 4.10) becomes s (d0 + d1 s + d2 s^2); its lowest power, the d.c. meaning,
-    is kept. Found on plant2's mode (the measuring plant): with d0 s alone the fitted pair sat
-    5 % below the closed loop's (README)."""
+    quadratic with a = 0). The rigid body's friction path d0 s (Eqn 4.10) becomes
+    s (d0 + d1 s + d2 s^2); its lowest power, the d.c. meaning, is kept. Found on plant2's mode
+    (the measuring plant): with d0 s alone the fitted pair sat 5 % below the closed loop's
+    (README)."""
     p = set(powers)
     return frozenset(q for q in p | {x + 1 for x in p} | {x + 2 for x in p} if q <= n_new)
 
