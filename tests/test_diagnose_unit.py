@@ -310,3 +310,18 @@ def test_local_windows_keep_a_slow_pole_where_it_is(small_model):
     assert (lo, hi) == (0.005, 0.02)
     assert ag._window(1.0, 2.0, 400.0) == (0.5, 2.0) and ag._window(0.06, 2.0, 400.0) == (0.05, 0.12)
     assert ag._window(300.0, 2.0, 400.0) == (150.0, 400.0)
+
+
+def test_the_whole_trace_refit_is_not_taken_when_a_kept_effect_becomes_implausible():
+    """Without --val the kept effects are refitted on the whole trace; a refit that damps a kept
+    mode's pair beyond a resonance (or turns a Stribeck excess negative) would relabel it as
+    what it is not, so it is not taken, however much better it predicts."""
+    from fdid_fmi.diagnose.loop import whole_refit_taken
+    mode = {"kind": "mode", "axis": "x", "frequency_hz": 49.4, "damping": 0.22}
+    assert whole_refit_taken({"x": 0.10}, [mode], 0.01) == (True, "")
+    assert not whole_refit_taken({"x": -0.02, "y": 0.3}, [mode], 0.01)[0]     # one channel worse
+    assert not whole_refit_taken({"x": 0.0}, [mode], 0.01)[0]                 # better on none
+    taken, why = whole_refit_taken({"x": 0.10}, [mode, dict(mode, damping=0.45)], 0.01)
+    assert not taken and why.startswith("mode: ") and "not lightly damped" in why
+    taken, why = whole_refit_taken({"x": 0.10}, [{"kind": "stribeck", "ratio_to_coulomb": -0.1}], 0.01)
+    assert not taken and why.startswith("stribeck: ")

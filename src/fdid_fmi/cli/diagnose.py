@@ -118,7 +118,7 @@ def run(args):
         if d.whole_refit:
             w = d.whole_refit
             print(f"  {'axis ' + ax + ': ' if ax else ''}refit of the augmented model on the whole trace "
-                  + ("taken" if w["taken"] else f"not taken ({w.get('error') or 'worse on some channel, or better on none'})")
+                  + ("taken" if w["taken"] else f"not taken ({w.get('error') or w.get('implausible') or 'worse on some channel, or better on none'})")
                   + "".join(f", {ch} RMS {w['whole_before'][ch]['rms_um']:.4g} -> {w['whole_after'][ch]['rms_um']:.4g} um"
                             for ch in w.get("whole_before", {})))
     print(f"effects added: {[e['kind'] for e in diag.effects_added] or 'none'}")

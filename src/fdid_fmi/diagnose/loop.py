@@ -403,7 +403,8 @@ def _refit_on_whole(recipe, model, res, whole, train, val, maxiter, max_loss, di
     given model was identified on the whole (as a rule), and a model fitted on half the moves
     predicts the other half worse (plant2's coupling scenario: the null refit 61 % worse held out
     than the given model). Taken when no channel's free-run RMS over the whole trace rises by
-    more than ``max_loss`` and one falls; the kept effects are then described from it.
+    more than ``max_loss`` and one falls, and no kept effect becomes implausible
+    (:func:`whole_refit_taken`); the kept effects are then described from it.
     ``diag.whole_refit`` records what happened. Returns (model, residuals on the two parts)."""
     say("refit of the augmented model on the whole trace")
     try:
@@ -413,16 +414,33 @@ def _refit_on_whole(recipe, model, res, whole, train, val, maxiter, max_loss, di
         diag.whole_refit = {"taken": False, "error": str(exc)}
         return model, res
     before, after = residuals(model, whole).table(), residuals(m, whole).table()
-    g = _gain(before, after)
-    diag.whole_refit = {"taken": bool(min(g.values()) >= -max_loss and max(g.values()) > 0),
-                        "whole_before": before, "whole_after": after}
-    if not diag.whole_refit["taken"]:
-        return model, res
     added = len(diag.steps)
-    m.effects[-added:] = [ag.describe_fitted(m, e) for e in m.effects[-added:]]
-    for st, e in zip(diag.steps, m.effects[-added:]):
+    described = [ag.describe_fitted(m, e) for e in m.effects[-added:]]
+    taken, why = whole_refit_taken(_gain(before, after), described, max_loss)
+    diag.whole_refit = {"taken": taken, "whole_before": before, "whole_after": after}
+    if why:
+        diag.whole_refit["implausible"] = why
+    if not taken:
+        return model, res
+    m.effects[-added:] = described
+    for st, e in zip(diag.steps, described):
         st.effect = e
     return m, {"train": residuals(m, train), "val": residuals(m, val)}
+
+
+def whole_refit_taken(gain, effects, max_loss):
+    """(taken, reason) for the whole-trace refit: taken when no channel's free-run RMS rises by
+    more than ``max_loss`` and one falls (``gain``: per channel, the relative fall), and every
+    kept effect, described from the refit, is still plausible (:func:`.base.implausible`: a mode
+    whose pair the refit damped beyond a resonance is no mode any more); the reason names the
+    first that is not."""
+    why = first_implausible(effects)
+    return bool(min(gain.values()) >= -max_loss and max(gain.values()) > 0 and not why), why
+
+
+def first_implausible(effects):
+    """'kind: reason' of the first implausible effect (:func:`.base.implausible`), or ''."""
+    return next((f"{e['kind']}: {w}" for e in effects if (w := implausible(e))), "")
 
 
 def _order_check(recipe, vel_train, train, val, maxiter):
@@ -620,8 +638,10 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
                 rtr, rva = _better(rtr, t2), _better(rva, v2)
             g_train, g_val = _gain(rtr, tt), _gain(rva, tv)
             keep = max(g_val.values()) >= min_gain and min(g_val.values()) >= -max_loss
-            effect = ag.describe_fitted(m, m.effects[-1])
-            why = implausible(effect)
+            # the effects kept so far, described from this refit, must stay plausible too (a
+            # later round's local search may damp a kept mode's pair beyond a resonance)
+            ours = [ag.describe_fitted(m, e) for e in m.effects[-(len(diag.steps) + 1):]]
+            effect, why = ours[-1], first_implausible(ours)
             trials.append((rank, c, m, rt, rv, keep and not why, kept_base))
             rnd["trials"].append({"kind": c.kind, "axis": c.axis, "params": c.params, "fitted": effect,
                                   "gain_train": g_train, "gain_val": g_val, "kept": False,
