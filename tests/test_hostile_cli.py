@@ -214,6 +214,7 @@ def test_bad_option_values_give_one_line(capsys, files, tmp_path, opts, words):
     (["diagnose", "m.json", "--train", "t.csv", "--max-loss", "-5"], ["--max-loss", "[0, 1)"]),
     (["diagnose", "m.json", "--train", "t.csv", "--max-steps", "-1"], ["--max-steps"]),
     (["diagnose", "m.json", "--train", "t.csv", "--maxiter", "0"], ["--maxiter"]),
+    (["diagnose", "m.json", "--train", "t.csv", "--jobs", "0"], ["--jobs"]),
     (["plan", "p.nc", "--model", "m.json", "--tol", "nan"], ["--tol", "> 0"]),
     (["plan", "p.nc", "--model", "m.json", "--margin", "-3"], ["--margin", "[0, 1)"]),
     (["validate", "d.fmu", "t.csv", "--tolerance", "nan"], ["--tolerance", "> 0"]),

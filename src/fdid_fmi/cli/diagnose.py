@@ -40,6 +40,9 @@ def register(sub):
                    help="... and no scored channel rises by more than this fraction (0.01)")
     p.add_argument("--max-steps", type=int_in(0, 100, "--max-steps"), default=4, help="at most this many effects added (per axis of a combined per-axis model)")
     p.add_argument("--maxiter", type=int_in(1, 100000, "--maxiter"), default=25, help="DE iterations of each refit")
+    p.add_argument("--jobs", type=int_in(1, 1024, "--jobs"), default=None,
+                   help="processes running the independent refits side by side (default: one per core; "
+                        "the result is the same for any number)")
     p.add_argument("--detectors", default=None,
                    help="comma list of detector families (friction, mode, delay, periodic, coupling)")
     p.add_argument("--exclude", nargs="+", action="extend", default=[], metavar="CHANNEL",
@@ -109,7 +112,7 @@ def run(args):
     # an empty list ("" or ",") is refused by diagnose(); it used to mean "every detector"
     dets = [d.strip() for d in args.detectors.split(",") if d.strip()] if args.detectors is not None else None
     diag = diagnose(model, train, val, detectors=dets, min_gain=args.min_gain, max_loss=args.max_loss,
-                    max_steps=args.max_steps, maxiter=args.maxiter, exclude=args.exclude,
+                    max_steps=args.max_steps, maxiter=args.maxiter, exclude=args.exclude, workers=args.jobs,
                     progress=lambda m: print(f"  {m}", file=sys.stderr))
     fmu = fmu_check(diag) if args.fmu else None
     if diag.split:

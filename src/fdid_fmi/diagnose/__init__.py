@@ -3,7 +3,8 @@
 ``diagnose(model, train, val)`` computes free-run residuals (:mod:`.residuals`), runs the
 detectors (:mod:`.friction`, :mod:`.mode`, :mod:`.delay`, :mod:`.periodic`, :mod:`.coupling`,
 :mod:`.whiteness`), adds each detected effect to the model and refits it (:mod:`.augment`), and
-keeps it only if the held-out error falls meaningfully (:mod:`.loop`).
+keeps it only if the held-out error falls meaningfully (:mod:`.loop`); the independent refits
+run side by side in worker processes (:mod:`.refits`).
 """
 from .loop import DETECTORS, Diagnosis, diagnose
 from .residuals import error_table, residuals

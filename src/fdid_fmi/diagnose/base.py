@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .refits import Refits
+
 
 @dataclass
 class Candidate:
@@ -81,7 +83,8 @@ class Context:
 
     model : current DriveModel; recipe : its Recipe; train : list of training traces whose
     ``vel`` role is the model's free-run velocity (for refits); res : Residuals of the model on
-    each training trace; settings : dict (``maxiter``, ``exclude`` channels, ``max_delay``)
+    each training trace; settings : dict (``maxiter``, ``exclude`` channels, ``max_delay``);
+    refits : :class:`.refits.Refits`, where independent refits run (default: in this process)
     """
 
     model: object
@@ -89,6 +92,7 @@ class Context:
     train: list
     res: list
     settings: dict = field(default_factory=dict)
+    refits: Refits = field(default_factory=Refits)
 
     @property
     def Ts(self):
@@ -122,10 +126,11 @@ def motion_events(cmd, Ts, frac=0.02):
     return ev
 
 
-def scan_refine(f, xs):
+def scan_refine(f, xs, map=map):
     """Minimise f over the grid xs, then a parabola through the best point and its neighbours
-    (when all three are finite)."""
-    vals = np.array([f(x) for x in xs])
+    (when all three are finite). ``map``: how f is evaluated over the grid (e.g.
+    :meth:`.refits.Refits.map`, which needs a picklable f)."""
+    vals = np.array(list(map(f, xs)))
     k = int(np.argmin(vals))
     best = float(xs[k])
     if 0 < k < len(xs) - 1 and np.all(np.isfinite(vals[k - 1:k + 2])):   # inf: an infeasible point

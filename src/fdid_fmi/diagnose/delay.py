@@ -176,14 +176,16 @@ def _profiles(ctx, a, kmax, maxiter):
         chi2 = sum(c for c in chi2 if np.isfinite(c)) if np.isfinite(chi2).any() else np.nan
         return chi2, np.sqrt(np.mean([np.mean(r.residual ** 2) for r in res])) * 1e3
 
+    searches = ({"search": "wide"}, {"search": "local", "from_current": True})
+    fits = [[ctx.refits.submit(ag.fit, ag.add_delay(ctx.recipe, a, k) if k else ctx.recipe, ctx.train,
+                               maxiter=maxiter, refine=False, **kw) for kw in searches]
+            for k in range(kmax + 1)]                   # every refit submitted, then scored here
     X, F = np.full(kmax + 1, np.inf), np.full(kmax + 1, np.inf)
     for k in range(kmax + 1):
-        rec = ag.add_delay(ctx.recipe, a, k) if k else ctx.recipe
         scored = [score([r.axes[a] for r in ctx.res])] if k == 0 else []    # the current model's
-        for kw in ({"search": "wide"}, {"search": "local", "from_current": True}):
+        for fut in fits[k]:
             try:        # a refit may be infeasible, or its free run may diverge
-                m = ag.fit(rec, ctx.train, maxiter=maxiter, refine=False, **kw)
-                scored.append(score([residuals(m, tr).axes[a] for tr in ctx.train]))
+                scored.append(score([residuals(fut.result(), tr).axes[a] for tr in ctx.train]))
             except InputError:
                 pass
         if scored:

@@ -69,6 +69,8 @@ run 0.39-0.46 (not tried).
 """
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 
 from ..errors import InputError
@@ -287,11 +289,8 @@ def _play_law_candidate(ctx, a, sat_cand):
     """The Stribeck candidate of a sat-law axis in the play law: the play's width is the one of
     ``PLAY_WIDTHS_MM`` (the structure choice's) whose quick refit without the Stribeck term has
     the lowest LS objective, then v_s as for the sat law; the play law alone is the reference."""
-    def J(b):
-        return ag.fit_objective(ag.to_play_law(ctx.recipe, a, b), ctx.train, search="local",
-                                maxiter=10, refine=False)
-
-    b = min(PLAY_WIDTHS_MM, key=J)
+    J = ctx.refits.map(partial(_play_objective, recipe=ctx.recipe, a=a, train=ctx.train), PLAY_WIDTHS_MM)
+    b = PLAY_WIDTHS_MM[int(np.argmin(J))]       # the first of equal ones, as min() picked it
     law = ag.to_play_law(ctx.recipe, a, b)
     vs = _best_vs(ctx, a, law)
     cand = Candidate("stribeck", a, sat_cand.statistic, sat_cand.threshold,
@@ -311,10 +310,17 @@ def _best_vs(ctx, a, recipe):
     if not hi > lo:
         return float(lo)
     xs = np.linspace(np.log10(lo), np.log10(hi), 7)
-
-    def J(lx):
-        return ag.fit_objective(ag.add_stribeck(recipe, a, 10 ** lx), ctx.train, search="local",
-                                maxiter=10, refine=False)
-
-    best, _ = scan_refine(J, xs)
+    J = partial(_stribeck_objective, recipe=recipe, a=a, train=ctx.train)
+    best, _ = scan_refine(J, xs, ctx.refits.map)
     return float(10 ** best)
+
+
+def _play_objective(b, recipe, a, train):
+    """LS objective of a quick refit of ``recipe`` with axis ``a`` in the play law of width b (mm)."""
+    return ag.fit_objective(ag.to_play_law(recipe, a, b), train, search="local", maxiter=10, refine=False)
+
+
+def _stribeck_objective(lx, recipe, a, train):
+    """LS objective of a quick refit of ``recipe`` with a Stribeck term of v_s = 10^lx (mm/s)."""
+    return ag.fit_objective(ag.add_stribeck(recipe, a, 10 ** lx), train, search="local", maxiter=10,
+                            refine=False)

@@ -54,6 +54,7 @@ from . import augment as ag
 from . import coupling, delay, friction, mode, order, periodic, whiteness
 from .base import Context, command_velocity, implausible
 from .limits import Note, NoteKind, data_limits, lost_motion_carried, not_checked, order_too_low, play_input
+from .refits import Refits
 from .residuals import Residuals, residuals, split_at_standstill
 
 DETECTORS = {"friction": friction, "mode": mode, "delay": delay, "periodic": periodic,
@@ -296,7 +297,7 @@ def split_blocks(model: DriveModel):
     return out
 
 
-def _combined(model, blocks, train, val, split, kw, say, t0, whole):
+def _combined(model, blocks, train, val, split, kw, say, t0, whole, refits):
     """Diagnose every block of a combined model on its own axis and combine the results."""
     names = {p.name for p in model.inputs} | {p.name for p in model.outputs}
     subs = {}
@@ -311,7 +312,7 @@ def _combined(model, blocks, train, val, split, kw, say, t0, whole):
             continue
         say(f"axis {ax}: diagnosing its block")
         subs[ax] = diagnose(b, train, val, progress=lambda m, ax=ax: say(f"axis {ax}: {m}"),
-                            _reserved=names - own, _block=True, _whole=whole, **kw)
+                            _reserved=names - own, _block=True, _whole=whole, _refits=refits, **kw)
     changed = any(d.final is not d.model for d in subs.values())
     if changed:
         final = DriveModel.combine([d.final for d in subs.values()],
@@ -454,8 +455,8 @@ def _order_check(recipe, vel_train, train, val, maxiter):
 
 
 def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, max_loss=0.01,
-             max_steps=4, maxiter=25, exclude=(), max_delay=6, progress=None, _reserved=(),
-             _block=False, _whole=None) -> Diagnosis:
+             max_steps=4, maxiter=25, exclude=(), max_delay=6, progress=None, workers=1, _reserved=(),
+             _block=False, _whole=None, _refits=None) -> Diagnosis:
     """Find what the residual says the model lacks, add it, and report the error before and after.
 
     Parameters
@@ -476,6 +477,8 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     max_delay : largest command shift tried (samples); a best shift equal to it is not named
         (:func:`.delay.shift_statistic`), so the largest dead time named is max_delay - 1
     progress : callable(str) for progress messages, optional
+    workers : processes the independent refits run in (:mod:`.refits`; None: every core; 1: in
+        this process); the result is the same for any number
 
     Returns
     -------
@@ -531,17 +534,29 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         if not _block and model.axes and len(still) == len(model.axes):
             raise InputError(f"the commanded position of axis {', '.join(still)} never moves in the {what} "
                              "trace; diagnosis needs moves", source=tr.source, column=f"{still[0]}.cmd")
-    if len(blocks) > 1 or blocks[0] is not model:
-        kw = dict(detectors=names, min_gain=min_gain, max_loss=max_loss, max_steps=max_steps,
-                  maxiter=maxiter, exclude=exclude, max_delay=max_delay)
-        return _combined(model, blocks, train, val, split, kw, say, t0, whole)
+    refits = _refits or Refits(workers)
+    try:
+        if len(blocks) > 1 or blocks[0] is not model:
+            kw = dict(detectors=names, min_gain=min_gain, max_loss=max_loss, max_steps=max_steps,
+                      maxiter=maxiter, exclude=exclude, max_delay=max_delay)
+            return _combined(model, blocks, train, val, split, kw, say, t0, whole, refits)
+        return _diagnose_block(model, train, val, settings, split, whole, _reserved, say, t0, refits)
+    finally:
+        if _refits is None:
+            refits.close()
+
+
+def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0, refits):
+    """:func:`diagnose` of a model that is one block (rounds of detectors, trials and keeping),
+    its options checked (``settings``)."""
+    names, maxiter, min_gain, max_loss = (settings[k] for k in ("detectors", "maxiter", "min_gain", "max_loss"))
     # without a held-out trace the held-out part is, as a rule, data the given model was
     # identified on: its figures there are in-sample and no reference for refits fitted on the
     # first part (plant2's default path: the order check's refits lost 10-107 % held out to them on
     # 10 of 11 runs); the null refit, fitted on the first part as the candidates are, is the reference,
     # and what is kept is refitted on the whole trace at the end (_refit_on_whole)
     in_sample = whole is not None   # the current model predicts the held-out part in-sample
-    recipe = ag.recipe_from_model(model, reserved=_reserved)
+    recipe = ag.recipe_from_model(model, reserved=reserved)
     current = model
     res0 = {"train": residuals(model, train), "val": residuals(model, val)}
     diag = Diagnosis(model=model, final=model, train=train, val=val, settings=settings, split=split)
@@ -550,11 +565,11 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     diag.tests_before = {k: _tests(r) for k, r in res0.items()}
     res_cur = res0
     order_notes, unchecked = [], []
-    for step in range(max_steps):
+    for step in range(settings["max_steps"]):
         tab_cur = {k: r.table() for k, r in res_cur.items()}
         vel_train = ag.model_velocity_traces(current, [train])
         ctx = Context(model=current, recipe=recipe, train=vel_train, res=[res_cur["train"]],
-                      settings=settings)
+                      settings=settings, refits=refits)
         cands = []
         for nm in names:
             say(f"round {step + 1}: detector {nm}")
@@ -568,9 +583,14 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         if not detected:
             say(f"round {step + 1}: nothing detected")
             break
+        # the null refit and every trial's refits, submitted together (they run side by side)
+        null_fit = refits.submit(ag.fit, recipe, vel_train, search="local", maxiter=maxiter)
+        fits = [[refits.submit(ag.fit, r, vel_train, search=c.search, maxiter=maxiter,
+                               refine=c.search != "locked") if r is not None else None
+                 for r in (c.recipe, c.reference)] for c in detected]
         say(f"round {step + 1}: null refit")
         try:
-            null = ag.fit(recipe, vel_train, search="local", maxiter=maxiter)
+            null = null_fit.result()
             tab_null = {"train": residuals(null, train).table(), "val": residuals(null, val).table()}
         except InputError as exc:   # no feasible refit of the same structure: the current model
             rnd["null_refit_error"] = str(exc)
@@ -599,11 +619,10 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
                     order_notes.append(order_too_low(ch.split(".")[0], g_val[ch], min_gain,
                                                      recipe.structure_chosen))
         trials = []
-        for c in detected:
+        for c, (fit_c, fit_ref) in zip(detected, fits):
             say(f"round {step + 1}: refit with {c.kind} {c.params}")
             try:
-                m = ag.fit(c.recipe, vel_train, search=c.search, maxiter=maxiter,
-                               refine=c.search != "locked")
+                m = fit_c.result()
             except InputError as exc:
                 rnd["trials"].append({"kind": c.kind, "axis": c.axis, "params": c.params, "error": str(exc)})
                 continue
@@ -626,8 +645,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
             rank = max(_gain(tab_cur["train"] if rtr is None else rtr, tt).values())
             if c.reference is not None:     # the effect must also beat its reference structure
                 try:
-                    mr = ag.fit(c.reference, vel_train, search=c.search, maxiter=maxiter,
-                                refine=c.search != "locked")
+                    mr = fit_ref.result()
                 except InputError as exc:   # then it cannot be compared: not kept
                     rnd["trials"].append({"kind": c.kind, "axis": c.axis, "params": c.params,
                                           "error": f"reference refit: {exc}"})

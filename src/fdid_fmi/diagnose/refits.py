@@ -1,0 +1,68 @@
+"""A diagnosis's independent refits, side by side in worker processes.
+
+Most of a diagnosis's time is refits that do not depend on each other: the dead time's command
+shifts (two searches per shift), the Stribeck velocity's grid and the play's widths, and each
+round's null refit and candidate trials with their references. :class:`Refits` runs them in
+``workers`` processes (the pool ``fdid identify``'s structure choice uses too) or, with one
+worker, in this process, one after the other as they are submitted. A refit is the same
+deterministic search wherever it runs (fixed seeds, the same arrays pickled to the worker), so a
+diagnosis gives the same result for any number of workers (``tests/test_diagnose_workers.py``).
+"""
+from __future__ import annotations
+
+import os
+from concurrent.futures import Future, ProcessPoolExecutor
+
+from ..errors import InputError
+
+
+def worker_count(workers):
+    """``workers`` checked: None means every core (``os.cpu_count()``); otherwise an integer >= 1."""
+    if workers is None:
+        return max(1, os.cpu_count() or 1)
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise InputError(f"workers must be an integer >= 1 (or None: every core), got {workers!r}",
+                         column="workers")
+    return workers
+
+
+class Refits:
+    """Independent refits of one diagnosis, in ``workers`` processes (1: in this process).
+
+    Use as a context manager (the pool is shut down on exit). ``submit`` returns a
+    :class:`concurrent.futures.Future`; in this process the call has already run and the future
+    holds its result or its exception, so callers handle both ways alike.
+    """
+
+    def __init__(self, workers=1):
+        self.workers = worker_count(workers)
+        self._pool = None           # started by the first submit
+
+    def submit(self, fn, *args, **kwargs) -> Future:
+        if self.workers > 1:
+            if self._pool is None:
+                self._pool = ProcessPoolExecutor(max_workers=self.workers)
+            return self._pool.submit(fn, *args, **kwargs)
+        fut = Future()
+        try:
+            fut.set_result(fn(*args, **kwargs))
+        except Exception as exc:        # delivered by fut.result(), as from a worker
+            fut.set_exception(exc)
+        return fut
+
+    def map(self, fn, items):
+        """[fn(x) for x in items], the calls submitted together (exceptions raised in order)."""
+        return [f.result() for f in [self.submit(fn, x) for x in items]]
+
+    def close(self):
+        """Shut the pool down; refits not yet started are cancelled (an error or an interrupt
+        must not wait for the rest of a scan)."""
+        if self._pool is not None:
+            self._pool.shutdown(cancel_futures=True)
+            self._pool = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

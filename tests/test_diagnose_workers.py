@@ -1,0 +1,49 @@
+"""A diagnosis's refits in worker processes (``diagnose(workers=N)``, ``fdid diagnose --jobs N``)
+give the same diagnosis as in one process, bit for bit."""
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from fdid_fmi.diagnose import diagnose
+from fdid_fmi.diagnose.refits import Refits, worker_count
+from fdid_fmi.diagnose.scenarios import scenario
+from fdid_fmi.errors import InputError
+from fdid_fmi.identify import identify_siso
+
+
+def _summary(d):
+    j = d.to_json()
+    j.pop("wall_time_s")
+    return json.dumps(j, sort_keys=True)
+
+
+def test_two_workers_give_the_same_diagnosis_as_one():
+    # the Stribeck scenario exercises every parallel path: the dead time's shifts, the Stribeck
+    # velocity's grid in both friction laws and the play's widths, the null refit and the trials,
+    # the play law's with its reference
+    tr, va = scenario("stribeck")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = identify_siso(tr, axis="x", maxiter=30)
+        one, two = (diagnose(m, tr, va, maxiter=20, workers=w) for w in (1, 2))
+    assert [e["kind"] for e in two.effects_added] == ["stribeck"]
+    laws = [t["params"].get("law", "sat") for t in two.rounds[0]["trials"] if t["kind"] == "stribeck"]
+    assert laws == ["sat", "play"]
+    assert _summary(one) == _summary(two)
+    for k in "ABCD":
+        assert np.array_equal(getattr(one.final, k), getattr(two.final, k))
+
+
+def test_an_input_error_in_a_worker_reaches_the_caller_as_itself():
+    with Refits(2) as refits:
+        fut = refits.submit(worker_count, 0)
+        with pytest.raises(InputError, match="workers must be an integer >= 1"):
+            fut.result()
+
+
+@pytest.mark.parametrize("bad", [0, -1, 1.5, True, "2"])
+def test_a_bad_worker_count_is_one_error_naming_it(bad):
+    with pytest.raises(InputError, match="column 'workers'"):
+        Refits(bad)
