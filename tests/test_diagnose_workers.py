@@ -1,9 +1,9 @@
 """A diagnosis's refits in worker processes (``diagnose(workers=N)``, ``fdid diagnose --jobs N``)
-give the same diagnosis as in one process, bit for bit."""
+give the same diagnosis as in one process, bit for bit (the final models of a kept effect:
+``benchmarks/bench_diagnose.py``)."""
 import json
 import warnings
 
-import numpy as np
 import pytest
 
 from fdid_fmi.diagnose import diagnose
@@ -20,20 +20,19 @@ def _summary(d):
 
 
 def test_two_workers_give_the_same_diagnosis_as_one():
-    # the Stribeck scenario exercises every parallel path: the dead time's shifts, the Stribeck
-    # velocity's grid in both friction laws and the play's widths, the null refit and the trials,
-    # the play law's with its reference
-    tr, va = scenario("stribeck")
+    # the delay scenario exercises every parallel path: the dead time's shifts, the Stribeck
+    # velocity's grid in both friction laws and the play's widths, the null refit and four trials
+    # (the play law's and the dead time's with their references); nothing is kept there (the
+    # order check wins, README), so the whole first round is compared
+    tr, va = scenario("delay")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         m = identify_siso(tr, axis="x", maxiter=30)
         one, two = (diagnose(m, tr, va, maxiter=20, workers=w) for w in (1, 2))
-    assert [e["kind"] for e in two.effects_added] == ["stribeck"]
-    laws = [t["params"].get("law", "sat") for t in two.rounds[0]["trials"] if t["kind"] == "stribeck"]
-    assert laws == ["sat", "play"]
+    trials = [(t["kind"], t["params"].get("law")) for t in two.rounds[0]["trials"]]
+    assert trials == [("stribeck", None), ("stribeck", "play"), ("mode", None), ("delay", None)]
+    # every statistic, fitted parameter and gain, to the last bit (the JSON writes floats exactly)
     assert _summary(one) == _summary(two)
-    for k in "ABCD":
-        assert np.array_equal(getattr(one.final, k), getattr(two.final, k))
 
 
 def test_an_input_error_in_a_worker_reaches_the_caller_as_itself():
