@@ -290,7 +290,7 @@ def _play_law_candidate(ctx, a, sat_cand):
     ``PLAY_WIDTHS_MM`` (the structure choice's) whose quick refit without the Stribeck term has
     the lowest LS objective, then v_s as for the sat law; the play law alone is the reference."""
     J = ctx.refits.map(partial(_play_objective, recipe=ctx.recipe, a=a, train=ctx.train), PLAY_WIDTHS_MM)
-    b = PLAY_WIDTHS_MM[int(np.argmin(J))]       # the first of equal ones, as min() picked it
+    b = PLAY_WIDTHS_MM[int(np.argmin(np.nan_to_num(J, nan=np.inf)))]     # the first of equal ones
     law = ag.to_play_law(ctx.recipe, a, b)
     vs = _best_vs(ctx, a, law)
     cand = Candidate("stribeck", a, sat_cand.statistic, sat_cand.threshold,

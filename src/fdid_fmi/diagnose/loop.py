@@ -583,12 +583,13 @@ def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0
         if not detected:
             say(f"round {step + 1}: nothing detected")
             break
-        # the null refit and every trial's refits, submitted together (they run side by side)
+        # the null refit and every trial's refits, submitted together (they run side by side; a
+        # reference is refitted even when its trial's refit fails, which is rare)
+        say(f"round {step + 1}: null refit and {len(detected)} trial refit(s)")
         null_fit = refits.submit(ag.fit, recipe, vel_train, search="local", maxiter=maxiter)
         fits = [[refits.submit(ag.fit, r, vel_train, search=c.search, maxiter=maxiter,
                                refine=c.search != "locked") if r is not None else None
                  for r in (c.recipe, c.reference)] for c in detected]
-        say(f"round {step + 1}: null refit")
         try:
             null = null_fit.result()
             tab_null = {"train": residuals(null, train).table(), "val": residuals(null, val).table()}

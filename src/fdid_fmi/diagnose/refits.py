@@ -3,15 +3,19 @@
 Most of a diagnosis's time is refits that do not depend on each other: the dead time's command
 shifts (two searches per shift), the Stribeck velocity's grid and the play's widths, and each
 round's null refit and candidate trials with their references. :class:`Refits` runs them in
-``workers`` processes (the pool ``fdid identify``'s structure choice uses too) or, with one
+``workers`` processes (a :class:`~concurrent.futures.ProcessPoolExecutor` with the platform's
+start method, the same kind of pool as ``fdid identify``'s structure choice) or, with one
 worker, in this process, one after the other as they are submitted. A refit is the same
 deterministic search wherever it runs (fixed seeds, the same arrays pickled to the worker), so a
 diagnosis gives the same result for any number of workers (``tests/test_diagnose_workers.py``).
+What is submitted must pickle: module-level functions and ``functools.partial`` of them.
 """
 from __future__ import annotations
 
 import os
 from concurrent.futures import Future, ProcessPoolExecutor
+
+import numpy as np
 
 from ..errors import InputError
 
@@ -20,10 +24,10 @@ def worker_count(workers):
     """``workers`` checked: None means every core (``os.cpu_count()``); otherwise an integer >= 1."""
     if workers is None:
         return max(1, os.cpu_count() or 1)
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
         raise InputError(f"workers must be an integer >= 1 (or None: every core), got {workers!r}",
                          column="workers")
-    return workers
+    return int(workers)
 
 
 class Refits:
@@ -55,8 +59,8 @@ class Refits:
         return [f.result() for f in [self.submit(fn, x) for x in items]]
 
     def close(self):
-        """Shut the pool down; refits not yet started are cancelled (an error or an interrupt
-        must not wait for the rest of a scan)."""
+        """Shut the pool down: refits still queued are cancelled, so an error or an interrupt
+        waits only for the refits already started, not for the rest of a scan."""
         if self._pool is not None:
             self._pool.shutdown(cancel_futures=True)
             self._pool = None
