@@ -24,6 +24,7 @@ import sys
 import traceback
 
 from ..errors import FdidError, InputError
+from ..workers import one_blas_thread
 
 # command modules, in the order their commands are listed in --help
 MODULES = ("identify", "simulate", "export", "validate", "diagnose", "plan", "align", "fleet", "demo")
@@ -157,6 +158,7 @@ def main(argv=None):
     args = _parse(parser, argv)
     debug = bool(getattr(args, "debug", False))
     cmd = f"fdid {args.command}"
+    one_blas_thread()       # as in fdid's worker processes (fdid_fmi.workers: why)
     try:
         return int(args.func(args) or 0)
     except FdidError as exc:

@@ -478,7 +478,8 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         (:func:`.delay.shift_statistic`), so the largest dead time named is max_delay - 1
     progress : callable(str) for progress messages, optional
     workers : processes the independent refits run in (:mod:`.refits`; None: every core; 1: in
-        this process); the result is the same for any number
+        this process); the result is the same for any number, bit for bit when this process
+        runs BLAS on one thread as the workers do (``fdid`` does: :mod:`fdid_fmi.workers`)
 
     Returns
     -------

@@ -3,31 +3,20 @@
 Most of a diagnosis's time is refits that do not depend on each other: the dead time's command
 shifts (two searches per shift), the Stribeck velocity's grid and the play's widths, and each
 round's null refit and candidate trials with their references. :class:`Refits` runs them in
-``workers`` processes (a :class:`~concurrent.futures.ProcessPoolExecutor` with the platform's
-start method, the same kind of pool as ``fdid identify``'s structure choice) or, with one
+``workers`` processes (:func:`fdid_fmi.workers.process_pool`: the platform's start method, one
+BLAS thread per worker, the same kind of pool as ``fdid identify``'s structure choice) or, with one
 worker, in this process, one after the other as they are submitted. A refit is the same
 deterministic search wherever it runs (fixed seeds, the same arrays pickled to the worker), so a
-diagnosis gives the same result for any number of workers (``tests/test_diagnose_workers.py``).
+diagnosis gives the same result for any number of workers (``tests/test_diagnose_workers.py``),
+to the last bit when the calling process, too, runs BLAS on one thread (threaded BLAS sums
+round differently).
 What is submitted must pickle: module-level functions and ``functools.partial`` of them.
 """
 from __future__ import annotations
 
-import os
-from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import Future
 
-import numpy as np
-
-from ..errors import InputError
-
-
-def worker_count(workers):
-    """``workers`` checked: None means every core (``os.cpu_count()``); otherwise an integer >= 1."""
-    if workers is None:
-        return max(1, os.cpu_count() or 1)
-    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
-        raise InputError(f"workers must be an integer >= 1 (or None: every core), got {workers!r}",
-                         column="workers")
-    return int(workers)
+from ..workers import process_pool, worker_count
 
 
 class Refits:
@@ -45,7 +34,7 @@ class Refits:
     def submit(self, fn, *args, **kwargs) -> Future:
         if self.workers > 1:
             if self._pool is None:
-                self._pool = ProcessPoolExecutor(max_workers=self.workers)
+                self._pool = process_pool(self.workers)
             return self._pool.submit(fn, *args, **kwargs)
         fut = Future()
         try:

@@ -480,7 +480,7 @@ def file_digest(path):
 # and simulation; cli/argtypes.py parses the option values; report.py writes entry.html
 PIPELINE_SOURCES = ("io", "identify", "fmu", "fmu_templates", "diagnose", "fleet", "trace.py", "units.py",
                     "signals.py", "model.py", "simulate.py", "metrics.py", "errors.py", "outputs.py",
-                    "kernel.py", "kernel_ext", "report.py",
+                    "kernel.py", "kernel_ext", "report.py", "workers.py",
                     "cli/identify.py", "cli/mapping.py", "cli/argtypes.py")
 
 

@@ -4,14 +4,15 @@
 
 Execution
 ---------
-* default: a local :class:`concurrent.futures.ProcessPoolExecutor` (``spawn`` processes, so no
-  state leaks from the caller) with ``workers`` processes (default: the machine's cores);
+* default: a local :func:`fdid_fmi.workers.process_pool` (``spawn`` processes, so no state
+  leaks from the caller; one BLAS thread each) with ``workers`` processes (default: the
+  machine's cores);
 * ``scheduler="tcp://host:8786"`` (or ``client=`` an existing ``dask.distributed.Client``, e.g.
   of a ``LocalCluster``): every entry is one ``Client.submit`` task, results are collected with
   ``distributed.as_completed``. The workers need the same Python environment: ``fdid-fmi`` and
-  its dependencies (numpy, scipy, fmpy, control, matplotlib, dask[distributed]) and gcc (FMU
-  export compiles C), and they must see the manifest's trace files and ``--out`` at the same
-  paths (a shared file system).
+  its dependencies (numpy, scipy, fmpy, control, matplotlib, dask[distributed], threadpoolctl)
+  and gcc (FMU export compiles C), and they must see the manifest's trace files and ``--out``
+  at the same paths (a shared file system).
 
 Both paths submit the same function, :func:`fdid_fmi.fleet.work.run_entry`, so the results are the
 same. There is no scheduling here beyond ``submit`` and ``as_completed``.
@@ -41,6 +42,7 @@ from pathlib import Path
 from .. import __version__
 from ..errors import InputError
 from ..outputs import remove_orphan_temp_files
+from ..workers import process_pool
 from .compare import Thresholds
 from .manifest import Manifest, entry_hash, file_digest, load_manifest, software_version
 from .work import ENTRY_FILE, EntryResult, PreviousModel, WorkItem, outputs_intact, run_entry
@@ -237,13 +239,12 @@ def _finished(entry_dir: Path, input_hash, compare_key):
 
 # ----------------------------------------------------------------------------- executors
 class _LocalPool:
-    """``concurrent.futures.ProcessPoolExecutor`` behind the two calls the runner uses."""
+    """A local process pool behind the two calls the runner uses."""
 
     def __init__(self, workers):
         import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
         self.workers = workers
-        self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+        self.pool = process_pool(workers, multiprocessing.get_context("spawn"))
         self.name = f"local pool ({workers} processes)"
 
     def submit(self, fn, item):

@@ -46,7 +46,6 @@ import dataclasses
 import os
 import time
 import warnings
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -54,6 +53,7 @@ from scipy.linalg import LinAlgWarning
 
 from ..errors import InputError
 from ..metrics import rms
+from ..workers import process_pool
 from .pole_search import identify_mimo
 from .ranges import training_ranges
 from .record import PoleSearchRecord
@@ -273,7 +273,7 @@ def fit_structures(traces, axis="x", same_sample=None, v_tilde=None, method="de"
     opts = dict(v_tilde=v_tilde, seed=seed, maxiter=maxiter, method=method, velocity=velocity,
                 ma_order=ma_order, outputs=scored_outputs(traces, axis))
     forms = [same_sample] if same_sample else list(CHOSEN_FROM)
-    pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
+    pool = process_pool(workers) if workers > 1 else None
 
     def run(cands, forms):
         jobs = [(c, f, traces, axis, opts) for c in cands for f in forms]
