@@ -1,5 +1,6 @@
 """A diagnosis's refits in worker processes (``diagnose(workers=N)``, ``fdid diagnose --jobs N``)
-give the same diagnosis as in one process, bit for bit (the final models of a kept effect:
+give the same diagnosis as in one process, bit for bit when this process runs BLAS on one thread
+as the workers do (``./run.sh test`` does; the final models of a kept effect:
 ``benchmarks/bench_diagnose.py``)."""
 import json
 import warnings

@@ -25,3 +25,16 @@ def test_a_worker_runs_blas_on_one_thread_when_the_environment_asks_for_two(monk
         pytest.skip(f"this machine's BLAS does not run 2 threads here ({control}): nothing to limit")
     with process_pool(1, spawn) as pool:
         assert pool.submit(blas_threads).result() == [1] * len(control)
+
+
+def test_the_cli_in_process_leaves_the_callers_blas_threads_as_they_were(tmp_path, capsys):
+    from threadpoolctl import threadpool_limits
+    from fdid_fmi.cli import main
+    with threadpool_limits(limits=2):
+        before = blas_threads()
+        if max(before) < 2:
+            pytest.skip(f"this machine's BLAS does not run 2 threads here ({before}): nothing to restore")
+        # a command that loads the model and fails on it: fdid ran, inside its one-thread limit
+        assert main(["simulate", str(tmp_path / "missing.json"), str(tmp_path / "missing.csv")]) == 2
+        assert "fdid simulate: error" in capsys.readouterr().err
+        assert blas_threads() == before

@@ -4,9 +4,11 @@ One kind of pool for every place that fits in parallel: ``fdid identify``'s stru
 ``fdid diagnose``'s refits and the fleet's local pool. Each worker limits BLAS (and OpenMP) to
 one thread: the pool already keeps every core busy, and the models' matrices are small, so BLAS
 threads on top of it only compete for the cores (README, "Refits side by side": 14 % less wall
-time for ``fdid diagnose --jobs 2`` on a 2-core machine). The ``fdid`` command does the same in
-its own process (:func:`fdid_fmi.cli.main`), so ``--jobs 1`` and ``--jobs 2`` give the same
-numbers to the last bit; a Python caller's process keeps whatever threads it has.
+time for ``fdid diagnose --jobs 2`` on a 2-core machine). The ``fdid`` command does the same
+while it runs a command (:func:`fdid_fmi.cli.main`, the previous limits restored after), so
+``--jobs 1`` and ``--jobs 2`` give the same numbers to the last bit; a Python caller's process
+keeps whatever threads it has. Dask's nanny starts its workers with one thread too (its
+``distributed.nanny.pre-spawn-environ`` setting).
 """
 from __future__ import annotations
 
@@ -36,7 +38,8 @@ def process_pool(workers, mp_context=None) -> ProcessPoolExecutor:
 
 
 def one_blas_thread():
-    """Limit every BLAS and OpenMP library loaded in this process to one thread."""
+    """Limit every BLAS and OpenMP library loaded in this process to one thread, from now on;
+    ``with one_blas_thread():`` restores the previous limits at the end of the block."""
     import scipy.linalg  # noqa: F401  -- scipy's own BLAS, loaded so that the limit reaches it
     from threadpoolctl import threadpool_limits
-    threadpool_limits(limits=1)
+    return threadpool_limits(limits=1)

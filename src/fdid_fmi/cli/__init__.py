@@ -158,9 +158,9 @@ def main(argv=None):
     args = _parse(parser, argv)
     debug = bool(getattr(args, "debug", False))
     cmd = f"fdid {args.command}"
-    one_blas_thread()       # as in fdid's worker processes (fdid_fmi.workers: why)
     try:
-        return int(args.func(args) or 0)
+        with one_blas_thread():     # as fdid's worker processes (fdid_fmi.workers: why)
+            return int(args.func(args) or 0)
     except FdidError as exc:
         if debug:
             traceback.print_exc()

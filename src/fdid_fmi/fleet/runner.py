@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import sys
 import time
 from dataclasses import asdict, dataclass, field
@@ -42,7 +41,7 @@ from pathlib import Path
 from .. import __version__
 from ..errors import InputError
 from ..outputs import remove_orphan_temp_files
-from ..workers import process_pool
+from ..workers import process_pool, worker_count
 from .compare import Thresholds
 from .manifest import Manifest, entry_hash, file_digest, load_manifest, software_version
 from .work import ENTRY_FILE, EntryResult, PreviousModel, WorkItem, outputs_intact, run_entry
@@ -313,7 +312,7 @@ def run_fleet(manifest, out, previous=None, scheduler=None, workers=None, client
     previous : folder of a previous fleet result: each new model is compared with the last one of
         the same axis, and the report lists the axes that changed
     scheduler : address of a Dask scheduler (``tcp://host:8786``); default: a local process pool
-    workers : processes of the local pool (default: ``os.cpu_count()``)
+    workers : processes of the local pool (None: every core, ``os.cpu_count()``)
     client : an existing ``dask.distributed.Client`` (e.g. of a ``LocalCluster``), instead of
         ``scheduler``
     progress : show a tqdm bar (entries done / failed, ETA) on stderr
@@ -336,8 +335,7 @@ def run_fleet(manifest, out, previous=None, scheduler=None, workers=None, client
     if previous is not None and Path(previous).resolve() == out.resolve():
         raise InputError("--previous must be another fleet folder than --out", source=str(previous))
     prev_models, prev_name, prev_version = _previous_models(previous)
-    if workers is not None and (int(workers) != workers or workers < 1):
-        raise InputError(f"workers must be a positive integer, got {workers!r}", column="workers")
+    workers = worker_count(workers)
 
     version = software_version()
     results: dict[str, EntryResult] = {}
@@ -365,7 +363,7 @@ def run_fleet(manifest, out, previous=None, scheduler=None, workers=None, client
         if scheduler is not None or client is not None:
             ex = _Dask(scheduler, client)
         else:
-            ex = _LocalPool(int(workers or os.cpu_count() or 1))
+            ex = _LocalPool(workers)
     bar = None
     if progress and todo:
         from tqdm import tqdm

@@ -43,7 +43,6 @@ its score and the choice are the model's ``identification["structure_choice"]``
 from __future__ import annotations
 
 import dataclasses
-import os
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -53,7 +52,7 @@ from scipy.linalg import LinAlgWarning
 
 from ..errors import InputError
 from ..metrics import rms
-from ..workers import process_pool
+from ..workers import process_pool, worker_count
 from .pole_search import identify_mimo
 from .ranges import training_ranges
 from .record import PoleSearchRecord
@@ -315,7 +314,8 @@ def identify_auto(traces, axis="x", same_sample=None, v_tilde=None, method="de",
     same_sample : ``hold`` / ``quadratic`` / ``cubic`` to pin the same-sample prediction
         (default: every form of ``regressors.CHOSEN_FROM`` tried on r2c1)
     v_tilde, method, seed, maxiter, velocity, ma_order : as :func:`~.pole_search.identify_mimo`
-    workers : processes fitting candidates in parallel (default: ``os.cpu_count()``; 1: in process)
+    workers : processes fitting candidates in parallel (None: every core, ``os.cpu_count()``; 1: in
+        this process)
     parsimony : relative free-run margin a structure with more parameters must win by
 
     Returns
@@ -325,7 +325,7 @@ def identify_auto(traces, axis="x", same_sample=None, v_tilde=None, method="de",
     """
     t0 = time.perf_counter()
     traces = training_ranges(traces, [axis])     # one line, not the same one from every candidate
-    workers = max(1, int(workers or os.cpu_count() or 1))
+    workers = worker_count(workers)
     results, probes = fit_structures(traces, axis, same_sample, v_tilde, method, seed, maxiter, velocity,
                                      ma_order, workers)
     best = choose([r for r, _ in results], parsimony)
