@@ -56,7 +56,8 @@ case "$cmd" in
         setup test
         # pytest -n 2 keeps both cores busy: BLAS threads on top of its two processes only compete
         # for them (session 32: 1106 CPU-s and 9 min 22 s with OpenBLAS's own threads, 880 CPU-s
-        # and 7 min 25 s with one per process); the benchmarks run the same way
+        # and 7 min 25 s with one per process); fdid's own pools and the fdid command do the same
+        # (src/fdid_fmi/workers.py)
         export OPENBLAS_NUM_THREADS=${OPENBLAS_NUM_THREADS:-1} OMP_NUM_THREADS=${OMP_NUM_THREADS:-1} \
             MKL_NUM_THREADS=${MKL_NUM_THREADS:-1}
         "$VENV/bin/python" -m pytest -n 2 --dist worksteal -q "$@"
