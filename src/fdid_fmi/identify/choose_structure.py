@@ -315,7 +315,8 @@ def identify_auto(traces, axis="x", same_sample=None, v_tilde=None, method="de",
         (default: every form of ``regressors.CHOSEN_FROM`` tried on r2c1)
     v_tilde, method, seed, maxiter, velocity, ma_order : as :func:`~.pole_search.identify_mimo`
     workers : processes fitting candidates in parallel (None: every core, ``os.cpu_count()``; 1: in
-        this process)
+        this process; :func:`fdid_fmi.workers.process_pool`); the fits are the same for any
+        number, to the last bit when this process runs BLAS on one thread as the workers do
     parsimony : relative free-run margin a structure with more parameters must win by
 
     Returns
