@@ -26,7 +26,7 @@ the structure choice (identification, and the default diagnosis base) fits its c
 processes.
 
     .venv/bin/python benchmarks/bench_plant2.py [--quick] [--scenarios a,b] [--skip-identification]
-        [--skip-diagnose] [--skip-calibration] [--diagnose-base thesis|default] [--out NAME.json]
+        [--skip-diagnose] [--skip-calibration] [--diagnose-base thesis|default] [--jobs N] [--out NAME.json]
     .venv/bin/python benchmarks/bench_plant2.py --print-only bench_plant2.json bench_plant2_diagnosis.json
 """
 import os
@@ -206,7 +206,7 @@ def base_model(tr, ax, base):
                    "real_hz": c.real_hz}
 
 
-def diagnosis(name, base="thesis", no_val=False):
+def diagnosis(name, base="thesis", no_val=False, jobs=1):
     train, vals, truth = p2.scenario(name)
     ax = truth["axis"]
     tr = train[0]
@@ -222,7 +222,7 @@ def diagnosis(name, base="thesis", no_val=False):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             m, options, out["model"] = base_model(tr, ax, base)
-            t, d = timed(lambda: diagnose(m, tr, va, **options))
+            t, d = timed(lambda: diagnose(m, tr, va, workers=jobs, **options))
     except Exception as exc:
         out["error"] = _err(exc)
         traceback.print_exc()
@@ -413,6 +413,9 @@ def main():
                     help="model diagnosed: the thesis's rigid pole search, or fdid identify's default")
     ap.add_argument("--no-val", action="store_true",
                     help="diagnose without a held-out trace (the training trace split at its standstill)")
+    ap.add_argument("--jobs", type=int, default=1,
+                    help="processes of each diagnosis's refits (diagnose(workers=N)); the same diagnosis "
+                         "for any number, to the last bit when BLAS runs one thread (OPENBLAS_NUM_THREADS=1)")
     ap.add_argument("--out", default="bench_plant2.json", help="file name in benchmarks/results")
     ap.add_argument("--print-only", nargs="*", metavar="JSON",
                     help="print the tables of earlier runs (files in benchmarks/results, merged in order)")
@@ -435,7 +438,8 @@ def main():
     # identification and the default diagnosis base (identify_auto) use two worker processes
     res = {"single_core": args.skip_identification and args.diagnose_base == "thesis", "quick": args.quick,
            "scenarios": names, "code": code_state(),
-           "diagnose_base": args.diagnose_base, "no_val": args.no_val, "identification": [], "diagnosis": []}
+           "diagnose_base": args.diagnose_base, "no_val": args.no_val, "jobs": args.jobs,
+           "blas_threads_env": os.environ.get("OPENBLAS_NUM_THREADS"), "identification": [], "diagnosis": []}
     print(f"code: {res['code']}", flush=True)
     path = OUT / args.out
 
@@ -447,7 +451,7 @@ def main():
         save()
     if not args.skip_diagnose:
         for name in names:
-            res["diagnosis"].append(diagnosis(name, args.diagnose_base, args.no_val))
+            res["diagnosis"].append(diagnosis(name, args.diagnose_base, args.no_val, args.jobs))
             save()
     # the thresholds were calibrated on the thesis models: their transfer is measured on those
     if not args.skip_calibration and not args.skip_diagnose and args.diagnose_base == "thesis":
