@@ -8,10 +8,11 @@ import warnings
 import pytest
 
 from fdid_fmi.diagnose import diagnose
-from fdid_fmi.diagnose.refits import Refits, worker_count
+from fdid_fmi.diagnose.refits import Refits
 from fdid_fmi.diagnose.scenarios import scenario
 from fdid_fmi.errors import InputError
 from fdid_fmi.identify import identify_siso
+from fdid_fmi.workers import worker_count
 
 
 def _summary(d):
