@@ -185,6 +185,31 @@ def _logged_runner(fmu):
     return r, msgs
 
 
+def test_a_drifting_master_clock_is_named_not_the_step_size(fmus):
+    """A master that keeps its clock by adding its steps (t += h) from a wall-clock start time
+    drifts off the sample grid by their rounding (ulp(1.7e9 s) = 2.4e-7 s) and is refused after
+    about 140 steps of h = Ts = 1 ms; the message must say that its time drifted, not that h = Ts is
+    not a multiple of Ts (a review's master, session 34)."""
+    m, fmu = fmus["siso"]
+    r, msgs = _logged_runner(fmu)
+    f = r.fmu
+    try:
+        t = 1.7e9
+        f.setupExperiment(startTime=t)
+        f.enterInitializationMode()
+        f.exitInitializationMode()
+        with pytest.raises(FMICallException):
+            for _ in range(100_000):
+                f.doStep(t, m.Ts)
+                t += m.Ts
+        assert abs(t - 1.7e9) < 1000 * m.Ts, "refused only after more than 1000 steps"
+        text = msgs[-1][2]
+        assert "currentCommunicationPoint" in text and "drifted" in text, text
+        assert "not an integer multiple" not in text, text
+    finally:
+        r.close()
+
+
 @pytest.mark.parametrize("case", ["step_size", "nan_input", "unknown_vr", "order", "cancel", "v0_fixed",
                                   "negative_vtilde", "output_set"])
 def test_misuse_returns_error_with_a_clear_message(fmus, case):

@@ -490,10 +490,19 @@ int fdid_do_step(FdidInstance *I, const char *fn, double t_comm, double h) {
                          Ts, I->start_time);
     nsteps = (long long)(q + 0.5) - I->s.f.steps;
     off = t_end - (I->start_time + (double)(I->s.f.steps + nsteps) * Ts);
-    if (nsteps < 1 || absd(off) > grid_tolerance(t_end))
+    if (nsteps < 1 || absd(off) > grid_tolerance(t_end)) {
+        /* a whole number of samples from a point that is off the FMU's time: a master whose clock
+         * adds up its steps (t += h) drifts by their rounding, which grows with |t| */
+        double n_h = (double)(long long)(h / Ts + 0.5);
+        if (n_h >= 1.0 && absd(h - n_h * Ts) <= grid_tolerance(t_end))
+            return fdid_fail(I, "%s: currentCommunicationPoint %.17g s is %.3g s off the FMU time %.17g s, so "
+                                "the step of %.0f sample(s) would end %.3g s off the sample grid: the "
+                                "master's clock has drifted (compute it as start time + n h, not by adding "
+                                "steps)", fn, t_comm, t_comm - t, t, n_h, off);
         return fdid_fail(I, "%s: communication step size %.17g s is not an integer multiple of the "
                             "model sample time Ts = %.17g s (the step would end %.3g s off the sample grid)",
                          fn, h, Ts, off);
+    }
     if (nsteps > FDID_MAX_STEPS_PER_DOSTEP)
         return fdid_fail(I, "%s: communication step size %g s would take %.0f internal steps of Ts = %g s; "
                             "at most %.0f are allowed in one doStep (use smaller communication steps)",
