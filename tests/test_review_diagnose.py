@@ -318,6 +318,37 @@ def test_validate_names_an_fmu_sampled_at_another_ts_than_the_reference(fmu_case
     assert "binary" not in str(e.value)
 
 
+def test_validate_names_an_fmu_of_another_model_with_the_same_variables(fmu_case):
+    """Before: "FMU and reference simulator differ by 0.00105 mm ...; the reference itself moves
+    by 1.01e-05 mm when the commands are perturbed ... so no implementation can agree", blaming
+    friction for a model mix-up (session 34's review: an FMU of another trace's model)."""
+    from fdid_fmi.fmu import export_fmu, validate_fmu
+    model, fmu, va, d = fmu_case
+    other = model.to_dict()
+    other["B"] = (np.asarray(other["B"]) * 1.001).tolist()
+    other_fmu = export_fmu(DriveModel.from_dict(other), d / "other.fmu")
+    with pytest.raises(InputError, match="other.fmu: the FMU was not exported from this model: its "
+                                         "resources/model.json differs in B"):
+        validate_fmu(other_fmu, va, model=model)
+    assert validate_fmu(fmu, va, model=model).ok          # the model's own FMU still passes
+
+
+def test_validate_judges_an_fmu_against_the_reference_s_own_sensitivity():
+    """An FMU that misses the 1e-9 mm target by less than the reference itself moves under a
+    1e-12 mm perturbation of its commands agrees as far as the trace allows (a note, passes:
+    EMPS PULSES with the rigid model, 4.6e-9 against 5.3e-9 mm, was exit 1 with a message that
+    said no implementation could agree); beyond that sensitivity it is a problem."""
+    from fdid_fmi.fmu.validate import ValidationResult, _judge_sensitive
+    near = ValidationResult(fmu="f.fmu", max_abs_diff_reference_mm=4.6e-9, reference_sensitivity_mm=5.33e-9)
+    _judge_sensitive(near)
+    assert near.ok and not near.problems and "as far as the trace allows" in near.notes[0]
+    assert "note: FMU and reference simulator differ by 4.6e-09 mm" in near.table()
+    far = ValidationResult(fmu="f.fmu", max_abs_diff_reference_mm=1.05e-3, reference_sensitivity_mm=1.01e-5)
+    _judge_sensitive(far)
+    assert not far.ok and not far.notes and "does not compute the reference model" in far.problems[0]
+    assert not ValidationResult(fmu="f.fmu", max_abs_diff_reference_mm=2e-9).ok   # no sensitivity: the target
+
+
 @pytest.mark.parametrize("given", ["", ","])
 def test_cli_empty_detector_list_is_refused_not_all(small, tmp_path, capsys, given):
     """``fdid diagnose --detectors ""`` ran every detector (the empty string read as "not given")."""
