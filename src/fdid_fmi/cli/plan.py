@@ -103,6 +103,10 @@ def run(args):
     bad = [a for a in axes if a not in ("x", "y", "z")]
     if bad:
         raise InputError(f"the model's axes {bad} are not x, y or z (the program's axes)", column="axes")
+    if prog.axes_used and not any(a in axes for a in prog.axes_used):
+        raise InputError(f"the program moves only the axes {prog.axes_used}, none of which the twin "
+                         f"models (axes {axes}): there is no error to predict or feed to optimise",
+                         source=args.program)
     print(f"fdid plan: {args.program}: {len(prog.blocks)} blocks, axes moved {prog.axes_used}, "
           f"twin {'FMU ' + str(fmu) if fmu else 'model ' + args.model} (axes {axes}, Ts {Ts * 1e3:.4g} ms)")
     unmodelled = [a for a in prog.axes_used if a not in axes]
