@@ -82,10 +82,39 @@ def _check_outputs(args):
                 raise InputError(f"the {what} and the {other} are the same file", source=str(p))
 
 
+def _refuse_in_sample_val(args, train_whole, val_whole, train, val):
+    """Refuse a --val that is the --train data (the same file, or a copy: the same time and channel
+    data) unless the two time ranges are disjoint: the held-out test would be in-sample."""
+    if same_file(args.train, args.val):
+        what = "the --val file is the --train file itself"
+    elif train_whole.fingerprint() == val_whole.fingerprint():
+        what = f"the --val file holds the same data as the --train file {args.train} (a copy?)"
+    else:
+        return
+    if val.t[0] > train.t[-1] or train.t[0] > val.t[-1]:       # disjoint ranges: truly held out
+        return
+    raise InputError(f"{what}: the held-out error would be measured on the fitted data; give another "
+                     "recording, disjoint --train-range / --val-range, or leave --val out (the training "
+                     "trace is then split in a fitted and a held-out part)", source=args.val, column="--val")
+
+
+def _refuse_unknown_exclude(exclude, traces):
+    """Refuse an --exclude name that is a channel of none of the given traces (it was ignored)."""
+    have = sorted({c for tr in traces for c in tr.channels})
+    for name in exclude:
+        if name not in have:
+            raise InputError(f"no channel '{name}' in the given trace(s); the channels are {have}",
+                             column="--exclude")
+
+
 def run(args):
     from ..diagnose import diagnose
     from ..diagnose.reporting import diagnosis_report, fmt_params, fmu_check
     _check_outputs(args)
+    if args.val_range and not args.val:     # it was read only with --val: silently ignored
+        raise InputError("--val-range cuts the --val trace, and no --val is given (without --val the held-out "
+                         "part of --train is chosen by the split; use --train-range to cut --train)",
+                         column="--val-range")
     if not 1 <= args.max_steps <= 20:
         raise InputError(f"--max-steps must be in 1 .. 20, got {args.max_steps}", column="--max-steps")
     if not 1 <= args.maxiter <= 10000:
@@ -98,8 +127,13 @@ def run(args):
         raise InputError("diagnosis refits the model with the pole search and needs a pole-search or MIMO "
                          "model (fdid identify --method pole-search or mimo), not a quasi-static one",
                          source=args.model, column="identification")
-    train = _ranged(trace_from_args(args.train, args), args.train_range, "--train-range")
-    val = _ranged(trace_from_args(args.val, args), args.val_range, "--val-range") if args.val else None
+    train_whole = trace_from_args(args.train, args)
+    val_whole = trace_from_args(args.val, args) if args.val else None
+    train = _ranged(train_whole, args.train_range, "--train-range")
+    val = _ranged(val_whole, args.val_range, "--val-range") if args.val else None
+    if val is not None:
+        _refuse_in_sample_val(args, train_whole, val_whole, train, val)
+    _refuse_unknown_exclude(args.exclude, [t for t in (train, val) if t is not None])
     for tr, what, need in ((train, "--train", MIN_SAMPLES * (1 if val is not None else 2)),
                            (val, "--val", MIN_SAMPLES)):
         if tr is not None and tr.n < need:

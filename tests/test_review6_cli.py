@@ -1,0 +1,104 @@
+"""Review round 6, the command line: an option that is given but not read is refused
+(``fdid diagnose --val-range`` without ``--val``, ``--exclude`` of a channel no trace has), a
+held-out trace that is the training trace is refused, ... Each refusal is one error line, exit 2,
+before any fit (a guard replaces the diagnosis, so a regression fails fast instead of fitting)."""
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fdid_fmi.cli import main
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from test_review_diagnose import _ramp_trace  # noqa: E402
+
+
+def _exit_code(argv):
+    try:
+        return main([str(a) for a in argv])
+    except SystemExit as exc:       # argparse
+        return exc.code
+
+
+def _one_error(capsys, prog):
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert len(err) == 1 and err[0].startswith(f"{prog}: error: "), err
+    return err[0]
+
+
+def _csv(path, tr):
+    np.savetxt(path, np.column_stack([tr.t, tr.cmd("x"), tr.act("x")]), delimiter=",",
+               header="t_s,x_cmd_mm,x_mm", comments="", fmt="%.12g")
+    return path
+
+
+@pytest.fixture(scope="module")
+def diag_files(tmp_path_factory):
+    from fdid_fmi.identify import identify_siso
+    d = tmp_path_factory.mktemp("diag")
+    tr = _ramp_trace()
+    identify_siso(tr, maxiter=1, friction=False).save(d / "m.json")
+    _csv(d / "train.csv", tr)
+    _csv(d / "val.csv", _ramp_trace(seed=1))
+    shutil.copy(d / "train.csv", d / "train_copy.csv")
+    return d
+
+
+@pytest.fixture
+def no_fit(monkeypatch):
+    """The diagnosis itself must not be reached: each case is refused before it."""
+    def reached(*a, **k):
+        raise AssertionError("the diagnosis started: the input was not refused")
+    monkeypatch.setattr("fdid_fmi.diagnose.diagnose", reached)
+
+
+# ------------------------------------------------------------------ 1. --val-range without --val
+def test_diagnose_val_range_without_val_is_refused(diag_files, no_fit, capsys):
+    d = diag_files
+    # before: the range was read only `if args.val` and the diagnosis ran on the split --train
+    code = _exit_code(["diagnose", d / "m.json", "--train", d / "train.csv", "--val-range", "0:1"])
+    line = _one_error(capsys, "fdid diagnose")
+    assert code == 2
+    assert "'--val-range'" in line and "no --val is given" in line and "--train-range" in line, line
+
+
+# ------------------------------------------------------------------ 2. --exclude of no channel
+def test_diagnose_exclude_of_a_channel_no_trace_has_is_refused(diag_files, no_fit, capsys):
+    d = diag_files
+    # before: the name was compared with the candidates and matched none, without a word
+    code = _exit_code(["diagnose", d / "m.json", "--train", d / "train.csv", "--val", d / "val.csv",
+                       "--exclude", "x_mm", "nosuch"])
+    line = _one_error(capsys, "fdid diagnose")
+    assert code == 2
+    assert "'--exclude'" in line and "no channel 'nosuch'" in line, line
+    assert "['x_cmd_mm', 'x_mm']" in line, line        # the channels there are
+
+
+# ------------------------------------------------------------------ 3. --val is the training data
+@pytest.mark.parametrize("val, said", [("train.csv", "is the --train file itself"),
+                                       ("./train.csv", "is the --train file itself"),
+                                       ("train_copy.csv", "holds the same data as the --train file")])
+def test_diagnose_val_that_is_the_training_data_is_refused(diag_files, no_fit, capsys, val, said):
+    d = diag_files
+    # before: the held-out error was measured in-sample, without a word
+    code = _exit_code(["diagnose", d / "m.json", "--train", d / "train.csv", "--val", f"{d}/{val}"])
+    line = _one_error(capsys, "fdid diagnose")
+    assert code == 2
+    assert "'--val'" in line and said in line and "held-out" in line, line
+
+
+def test_diagnose_same_file_with_overlapping_ranges_is_refused(diag_files, no_fit, capsys):
+    d = diag_files
+    code = _exit_code(["diagnose", d / "m.json", "--train", d / "train.csv", "--train-range", "0:2",
+                       "--val", d / "train.csv", "--val-range", "1.5:2.9"])
+    assert code == 2 and "is the --train file itself" in _one_error(capsys, "fdid diagnose")
+
+
+def test_diagnose_same_file_with_disjoint_ranges_is_held_out(diag_files, no_fit, capsys):
+    d = diag_files
+    # disjoint ranges of one recording are a true held-out test: not refused (the guard is reached)
+    _exit_code(["diagnose", d / "m.json", "--train", d / "train.csv", "--train-range", "0:1.4",
+                "--val", d / "train.csv", "--val-range", "1.5:2.9"])
+    assert "the diagnosis started" in capsys.readouterr().err
