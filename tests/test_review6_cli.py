@@ -102,3 +102,24 @@ def test_diagnose_same_file_with_disjoint_ranges_is_held_out(diag_files, no_fit,
     _exit_code(["diagnose", d / "m.json", "--train", d / "train.csv", "--train-range", "0:1.4",
                 "--val", d / "train.csv", "--val-range", "1.5:2.9"])
     assert "the diagnosis started" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ 4. manifest: traces and trace
+@pytest.mark.parametrize("text, fmt", [
+    ('[[entry]]\nmachine="m01"\naxis="x"\ntraces=["a.csv"]\ntrace=["b.csv"]\n', "toml"),
+    ("machine,axis,traces,trace\nm01,x,a.csv,b.csv\n", "csv"),
+])
+def test_manifest_entry_with_both_traces_and_trace_is_refused(text, fmt):
+    from fdid_fmi.fleet import parse_manifest_text
+    # before: raw.get("traces", raw.get("trace")) kept 'traces' and dropped b.csv without a word
+    m = parse_manifest_text(text, fmt, source=f"both.{fmt}")
+    (e,) = m.entries
+    assert e.error and "\n" not in e.error, e.error
+    assert "entry" in e.error and "m01/x" in e.error and "'traces' and 'trace'" in e.error, e.error
+    assert "b.csv" in e.error
+
+
+def test_manifest_entry_with_trace_alone_still_works():
+    from fdid_fmi.fleet import parse_manifest_text
+    m = parse_manifest_text('[[entry]]\nmachine="m01"\naxis="x"\ntrace=["b.csv"]\n', "toml")
+    assert m.entries[0].error is None and m.entries[0].traces[0].endswith("b.csv")

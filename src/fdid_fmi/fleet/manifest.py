@@ -277,6 +277,10 @@ def _build_entry(raw: dict, defaults: dict, base: Path, row: int, where: str) ->
         if unknown:
             raise InputError(f"unknown key(s) {unknown} in entry {row}; expected {sorted(_ENTRY_KEYS)}",
                              source=where, column=unknown[0])
+        if "traces" in raw and "trace" in raw:    # one was dropped without a word
+            raise InputError(f"entry {row} ({machine}/{axis}) gives both 'traces' and 'trace' "
+                             f"({raw['traces']!r} and {raw['trace']!r}); give the trace files once, "
+                             f"as 'traces'", source=where, column="trace")
         traces = raw.get("traces", raw.get("trace"))
         if isinstance(traces, str):
             traces = [t.strip() for t in traces.split(";") if t.strip()]
