@@ -215,3 +215,23 @@ def test_simulate_refuses_what_it_would_ignore():
             simulate(qs, {"x": np.zeros(50)}, Ts=cfg.Ts, **kw)
     with pytest.raises(InputError, match="at least 2"):
         simulate(qs, {"x": np.zeros(1)}, Ts=cfg.Ts)
+
+
+def test_prediction_csv_keeps_epoch_time_stamps_distinct(tmp_path):
+    """A record on an epoch clock (1.7e9 s at 0.6 ms) was written with 12 significant digits:
+    3252 rows, 196 distinct time stamps, which no reader accepts (a review, session 34). Times on
+    an ordinary clock keep the 12 digits they had."""
+    from fdid_fmi.cli.simulate import write_prediction_csv
+    from fdid_fmi.simulate import SimResult
+    n = 3000
+    for t0, digits in ((1.7e9, 17), (0.0, 12)):
+        t = t0 + 6e-4 * np.arange(n)
+        x = np.linspace(0.0, 1.0, n)
+        sim = SimResult(t=t, y=np.zeros((n, 0)), u=np.zeros((n, 0)), axes={"x": {"position": x, "error": -x}},
+                        output_names=[])
+        out = write_prediction_csv(tmp_path / f"p{digits}.csv", sim, ["x"])
+        back = np.loadtxt(out, delimiter=",", skiprows=1)
+        assert np.all(np.diff(back[:, 0]) > 0)
+        assert np.abs(back[:, 0] - t).max() <= 1e-6 * 6e-4 + 1e-16 * abs(t0)
+        if t0 == 0.0:
+            assert open(out).read().splitlines()[2].split(",")[0] == "0.0006"

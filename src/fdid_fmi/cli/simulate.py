@@ -26,6 +26,18 @@ def register(sub):
     p.set_defaults(func=run)
 
 
+def _time_digits(t):
+    """Significant digits that keep time stamps a sample apart distinct (12 at least: the
+    values' precision; 17 at most): a record on an epoch clock (1.7e9 s at 0.6 ms) needs 17,
+    and with 12 it was written with duplicate time stamps that no reader accepts."""
+    t = np.asarray(t, float)
+    span = float(np.max(np.abs(t))) if t.size > 1 else 0.0
+    Ts = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    if not (span > 0 and Ts > 0):
+        return 12
+    return int(min(17, max(12, np.ceil(np.log10(span)) - np.floor(np.log10(Ts)) + 4)))
+
+
 def write_prediction_csv(path, sim, axes):
     """Write ``t_s,<axis>_x_pred_mm,<axis>_e_pred_mm`` rows of one or several simulations
     (``sim`` a result or a list of results, e.g. one per ``--range``) atomically.
@@ -46,7 +58,8 @@ def write_prediction_csv(path, sim, axes):
         raise InputError(f"the prediction is not finite from row {i + 2} on; nothing written",
                          source=str(path), column=header[j], row=i + 2)
     buf = io.StringIO()
-    np.savetxt(buf, data, delimiter=",", header=",".join(header), comments="", fmt="%.12g")
+    fmt = [f"%.{_time_digits(sims[0].t)}g"] + ["%.12g"] * (len(header) - 1)
+    np.savetxt(buf, data, delimiter=",", header=",".join(header), comments="", fmt=fmt)
     return atomic_write(path, buf.getvalue())
 
 
