@@ -226,3 +226,15 @@ def test_staged_output_moves_files_only_when_the_run_succeeds(tmp_path):
     with pytest.raises(InputError, match="not a folder"):
         with staged_output(tmp_path / "file"):
             pass
+
+
+def test_an_axis_without_its_measured_position_is_named_not_dropped(capsys, tmp_path):
+    """A trace whose y axis has its command column but not its measured one was identified on x
+    alone without a word (a review, session 34): the summary now says y is not identified."""
+    lines = (ROOT / "examples" / "virtual_circle.csv").read_text().splitlines()
+    (tmp_path / "nocol.csv").write_text("\n".join(",".join(ln.split(",")[:4]) for ln in lines) + "\n")
+    assert main(["identify", str(tmp_path / "nocol.csv"), "--method", "quasi-static",
+                 "-o", str(tmp_path / "q.json")]) == 0
+    out = capsys.readouterr().out
+    assert "note: axis y has no measured position" in out and "--map y.act=COLUMN" in out
+    assert "axis x" not in out

@@ -295,14 +295,21 @@ def check_v_tilde(v_tilde, pieces, axes, ma_order=1, velocity="backward", option
                              f"smaller value or leave it out to search it", source=option)
 
 
-def identify_from_args(trace, args, progress=True):
-    """Run the identification the arguments ask for; returns the model."""
+def identify_from_args(trace, args, progress=True, notes=True):
+    """Run the identification the arguments ask for; returns the model. ``notes``: print what
+    the trace lacks (an axis with a command but no measurement is not identified)."""
     from .. import identify as idf
     pieces = trace.select(trace.meta.get("ranges"))
     axes = args.axis or [a for a in trace.axes if trace.has(a, "cmd") and trace.has(a, "act")]
     if not axes:
         raise InputError("the trace has no axis with both 'cmd' and 'act' channels; use --map",
                          source=trace.source)
+    half = [(a, "act" if trace.has(a, "cmd") else "cmd") for a in trace.axes
+            if a not in axes and trace.has(a, "cmd") != trace.has(a, "act")]
+    for a, lacking in half if notes and not args.axis else ():       # not dropped without a word
+        kind = {"act": "measured", "cmd": "commanded"}[lacking]
+        print(f"note: axis {a} has no {kind} position in {trace.source} and is not identified "
+              f"(map its column with --map {a}.{lacking}=COLUMN)")
     from ..identify.ranges import check_externals
     check_externals(trace, axes, getattr(args, "external", None) or (), what="--external")
     if getattr(args, "v_tilde", None) is not None:

@@ -273,7 +273,7 @@ def _identify(spec, trace):
     if spec.axis not in trace.axes or not (trace.has(spec.axis, "cmd") and trace.has(spec.axis, "act")):
         raise InputError(f"the trace has no axis '{spec.axis}' with 'cmd' and 'act' channels "
                          f"(axes found: {trace.axes}); check the entry's map", source=spec.traces[0])
-    return identify_from_args(trace, args, progress=False)
+    return identify_from_args(trace, args, progress=False, notes=False)
 
 
 def _save_json(path, data):
