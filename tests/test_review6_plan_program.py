@@ -57,3 +57,34 @@ def test_program_moving_some_unmodelled_axes_still_warns(tmp_path, model_xy, cap
     code, out, err = _plan(capsys, nc, "--model", model_xy, "--limits", LIMITS)
     assert code == 0, err
     assert "warning: the program moves ['z']" in out
+
+
+# --- 2: options checked before the work, nothing printed before an error -----------------------
+
+@pytest.mark.parametrize("program, extra, words", [
+    ("G1 X10 Y5 F3000\n", ["--limits", LIMITS, "-o", "{tmp}/x.nc"], ["'-o'", "--optimize"]),
+    ("G1 X10 Y5 F3000\n", ["--limits", LIMITS, "--corner-angle", "nan"], ["'--corner-angle'", "nan"]),
+    ("G1 X10 Y5 F3000\n", ["--limits", LIMITS, "--corner-angle", "181"], ["'--corner-angle'", "0 to 180"]),
+    ("G1 X10 Y5 F3000\n", ["--limits", "0,2000,1e5"], ["'--limits'", "'0,2000,1e5'", "limit v"]),
+    ("G1 X10 Y5 F3000\n", ["--limits", "x=" + LIMITS], ["p.nc", "'--limits'", "['y']"]),
+    ("G1 X10 Y5 F3000\n", ["--limits", LIMITS, "--margin", "0.1"], ["'--margin'", "--optimize"]),
+    ("G1 X10 Y5 F3000\n", ["--limits", LIMITS, "--range", "0:1"], ["'--range'", "--limits-from"]),
+    ("G1 X10 Y5 F3000\n", ["--limits", LIMITS, "--start", "0,0,nan"], ["'--start'", "0,0,nan"]),
+    ("G1 X10 Y5 F3000\n", ["--limits", LIMITS, "--commands", "{tmp}/tr.csv"], ["'--limits'", "--commands"]),
+    ("G1 X10 Y5 F3000\n", ["--commands", "{tmp}/tr.csv", "--optimize", "--tol", "0.01"], ["'--optimize'"]),
+    ("", ["--limits", LIMITS], ["p.nc", "no motion block"]),
+    ("(only a comment)\nM30\n", ["--limits", LIMITS], ["p.nc", "no motion block"]),
+    ("G4 P1\nG1 X0 F100\n", ["--limits", LIMITS], ["p.nc", "moves no axis"]),
+])
+def test_options_and_programs_refused_before_any_output(tmp_path, model_xy, capsys, program, extra, words):
+    """Before: -o without --optimize ran the whole prediction and printed its table, and a NaN
+    --corner-angle, a zero limit or an empty program printed the header lines, then the error;
+    the --limits errors named no file even when the program's axes were the cause."""
+    nc = _nc(tmp_path, program)
+    (tmp_path / "tr.csv").write_text("t_s,x_cmd_mm,x_mm\n0,0,0\n0.001,1,1\n")
+    code, out, err = _plan(capsys, nc, "--model", model_xy, *[a.format(tmp=tmp_path) for a in extra])
+    assert code == 2 and out == "", out
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    for w in words:
+        assert w in err, (w, err)
+    assert not (tmp_path / "x.nc").exists()

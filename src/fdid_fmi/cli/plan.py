@@ -12,6 +12,7 @@ the errors per block.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 from ..errors import InputError
@@ -35,7 +36,7 @@ def register(sub):
                    help="no stop at junctions whose tangents differ by at most DEG (default: exact stop at every block end)")
     p.add_argument("--tol", type=finite_float("--tol", positive=True), default=None, help="contour tolerance [mm]: blocks above it are flagged")
     p.add_argument("--optimize", action="store_true", help="find per-block feeds within --tol (needs --tol)")
-    p.add_argument("--margin", type=fraction("--margin"), default=0.02,
+    p.add_argument("--margin", type=fraction("--margin"), default=None,
                    help="the optimised feeds aim at tol x (1 - margin), room for the twin's error (default 0.02)")
     p.add_argument("-o", "--output", default=None, help="write the optimised NC program here")
     p.add_argument("--report", default=None, help="HTML report")
@@ -53,17 +54,77 @@ def _ranged_trace(path, args):
     return single_range(trace_from_args(path, args), "one --range for fdid plan's trace")
 
 
-def _limits(args, axes_needed):
-    from ..plan.interpolate import limits_from_trace, parse_limits
+def _check_options(args):
+    """Every option checked before any file is read, any work done or any line printed.
+
+    Returns
+    -------
+    start : list of 3 floats, mm;  limits : dict axis -> AxisLimits from ``--limits``
+    """
+    from ..outputs import check_output, same_file
+    from ..plan.interpolate import parse_limits
+    outs = [o for o in (args.output, args.report, args.json, args.csv) if o]
+    inputs = [i for i in (args.program, args.model or args.fmu, args.limits_from, args.commands) if i]
+    for k, o in enumerate(outs):
+        check_output(o, inputs=inputs)
+        if any(same_file(o, other) for other in outs[:k]):
+            raise InputError("two outputs name the same file", source=str(o))
+    if args.optimize and args.tol is None:
+        raise InputError("--optimize needs --tol (contour tolerance in mm)", column="--tol")
+    if args.output and not args.optimize:
+        raise InputError("-o writes the optimised program: add --optimize --tol TOL", column="-o")
+    if args.margin is not None and not args.optimize:
+        raise InputError("--margin is read by --optimize only: add --optimize --tol TOL", column="--margin")
+    if args.commands:
+        if args.optimize:
+            raise InputError("--optimize re-interpolates the program: give --limits, not --commands",
+                             column="--optimize")
+        unused = [o for o, v in (("--limits", args.limits), ("--limits-from", args.limits_from),
+                                 ("--corner-angle", args.corner_angle is not None)) if v]
+        if unused:
+            raise InputError(f"{unused[0]} shapes the interpolation, which --commands replaces by the "
+                             f"trace's setpoints: leave one of them out", column=unused[0])
+    elif args.corner_angle is not None and not 0 <= args.corner_angle <= 180:
+        raise InputError(f"the angle between two blocks' tangents must be 0 to 180 deg, got "
+                         f"{args.corner_angle!r}", column="--corner-angle")
+    trace_opts = [o for o, v in (("--map", args.map), ("--unit", args.unit), ("--range", args.range),
+                                 ("--layout", args.layout != "auto"), ("--axes", args.axes)) if v]
+    if trace_opts and not (args.limits_from or args.commands):
+        raise InputError(f"{trace_opts[0]} reads a trace: give --limits-from TRACE or --commands TRACE",
+                         column=trace_opts[0])
+    if trace_opts:
+        from .mapping import parse_mapping, parse_ranges, parse_units
+        parse_mapping(args.map)
+        parse_units(args.unit)
+        parse_ranges(args.range)
+    try:
+        start = [float(v) for v in args.start.split(",")]
+    except ValueError:
+        start = []
+    if len(start) != 3 or not all(math.isfinite(v) for v in start):
+        raise InputError(f"'{args.start}' is not x,y,z: three finite numbers in mm", column="--start")
+    lim = {}
+    for text in args.limits:
+        try:
+            lim = parse_limits(text, lim)
+        except InputError as exc:           # AxisLimits names 'limit v': say which option and text
+            msg = str(exc).removeprefix(f"column '{exc.column}': ") if exc.column else str(exc)
+            raise InputError(f"'{text}': {msg}" if text not in msg else msg, column="--limits") from None
+    return start, lim
+
+
+def _limits(args, given, axes_needed):
+    """--limits-from's estimates, overridden by --limits; every axis the program moves needs one."""
+    from ..plan.interpolate import limits_from_trace
     lim = {}
     if args.limits_from:
         lim.update(limits_from_trace(_ranged_trace(args.limits_from, args)))
-    for text in args.limits:
-        lim = parse_limits(text, lim)
+    lim.update(given)
     missing = [a for a in axes_needed if a not in lim]
     if missing:
-        raise InputError(f"no limits for axes {missing}: give --limits V,A,J (mm/s, mm/s^2, mm/s^3) "
-                         f"or --limits-from TRACE", column="--limits")
+        raise InputError(f"the program moves axes {missing}, which have no limits: give --limits V,A,J "
+                         f"(mm/s, mm/s^2, mm/s^3) or AXIS=V,A,J, or --limits-from TRACE",
+                         source=args.program, column="--limits")
     return lim
 
 
@@ -75,19 +136,7 @@ def run(args):
     from ..plan.predict import fmu_axes, model_from_fmu, predict
     from ..plan.reporting import plan_report
 
-    from ..outputs import check_output, same_file
-    outs = [o for o in (args.output, args.report, args.json, args.csv) if o]
-    inputs = [i for i in (args.program, args.model or args.fmu, args.limits_from, args.commands) if i]
-    for k, o in enumerate(outs):
-        check_output(o, inputs=inputs)
-        if any(same_file(o, other) for other in outs[:k]):
-            raise InputError("two outputs name the same file", source=str(o))
-    if args.optimize and args.tol is None:
-        raise InputError("--optimize needs --tol (contour tolerance in mm)", column="--tol")
-    try:
-        start = [float(v) for v in args.start.split(",")]
-    except ValueError:
-        raise InputError(f"'{args.start}' is not x,y,z", column="--start") from None
+    start, given_limits = _check_options(args)
     prog = read_program(args.program, start=start)
     if args.model:
         model = load_model(args.model)
@@ -102,11 +151,27 @@ def run(args):
         Ts = model.Ts
     bad = [a for a in axes if a not in ("x", "y", "z")]
     if bad:
-        raise InputError(f"the model's axes {bad} are not x, y or z (the program's axes)", column="axes")
-    if prog.axes_used and not any(a in axes for a in prog.axes_used):
+        raise InputError(f"the model's axes {bad} are not x, y or z (the program's axes)",
+                         source=args.model or args.fmu, column="axes")
+    if not prog.blocks:
+        raise InputError("the program has no motion block (G0, G1, G2, G3 or G4)", source=args.program)
+    if not prog.axes_used:
+        raise InputError("the program moves no axis (every block ends where it starts): there is no "
+                         "error to predict", source=args.program)
+    if not any(a in axes for a in prog.axes_used):
         raise InputError(f"the program moves only the axes {prog.axes_used}, none of which the twin "
                          f"models (axes {axes}): there is no error to predict or feed to optimise",
                          source=args.program)
+    if args.commands:
+        tr = _ranged_trace(args.commands, args)
+        if abs(tr.Ts - Ts) > 1e-3 * Ts:
+            tr = tr.resample(Ts)
+        ip = commands_from_trace(prog, tr, axes)
+        lim = None
+    else:
+        lim = _limits(args, given_limits, prog.axes_used)
+        ip = interpolate(prog, lim, Ts, progress=True, corner_angle_deg=args.corner_angle)
+    # nothing is printed before here: every error the inputs or options can cause came first
     print(f"fdid plan: {args.program}: {len(prog.blocks)} blocks, axes moved {prog.axes_used}, "
           f"twin {'FMU ' + str(fmu) if fmu else 'model ' + args.model} (axes {axes}, Ts {Ts * 1e3:.4g} ms)")
     unmodelled = [a for a in prog.axes_used if a not in axes]
@@ -116,15 +181,6 @@ def run(args):
     if prog.ignored:
         print(f"  passed over: {', '.join(f'line {r}: {w}' for r, w in prog.ignored[:20])}"
               + (" ..." if len(prog.ignored) > 20 else ""))
-    if args.commands:
-        tr = _ranged_trace(args.commands, args)
-        if abs(tr.Ts - Ts) > 1e-3 * Ts:
-            tr = tr.resample(Ts)
-        ip = commands_from_trace(prog, tr, axes)
-        lim = None
-    else:
-        lim = _limits(args, prog.axes_used)
-        ip = interpolate(prog, lim, Ts, progress=True, corner_angle_deg=args.corner_angle)
     twin = {"model": model} if fmu is None else {"fmu": fmu}
     pr = predict(ip, tol_mm=args.tol, program=prog, **twin)
     s = pr.summary
@@ -139,12 +195,10 @@ def run(args):
               f"{r['contour_rms_um']:.2f} | {r['contour_max_um']:.2f} | {'OVER' if r['flag'] else ''} |")
     fpl = None
     if args.optimize:
-        if lim is None:
-            raise InputError("--optimize re-interpolates the program: give --limits, not --commands",
-                             column="--optimize")
         from ..plan.optimize import optimize_feeds
         from ..plan.ncprogram import write_program
-        fpl = optimize_feeds(prog, lim, Ts, args.tol, margin=args.margin, progress=True, before=pr,
+        fpl = optimize_feeds(prog, lim, Ts, args.tol, margin=0.02 if args.margin is None else args.margin,
+                             progress=True, before=pr,
                              corner_angle_deg=args.corner_angle, **twin)
         print(f"\nfeed optimisation (tol {args.tol * 1e3:.3g} µm): cycle time {fpl.before.interp.cycle_time:.3f} s "
               f"(programmed) -> {fpl.after.interp.cycle_time:.3f} s (per-block feeds, contour MAX "
@@ -164,8 +218,6 @@ def run(args):
                                  header=f"feeds optimised by fdid plan for a contour tolerance of {args.tol:g} mm")
             _write_text(args.output, text)
             print(f"optimised program: {args.output}")
-    elif args.output:
-        raise InputError("-o writes the optimised program: add --optimize --tol TOL", column="-o")
     if args.report or args.json:
         rep = plan_report(prog, pr, model=model, tol_mm=args.tol, feed_plan=fpl, fmu=fmu)
         if args.report:
