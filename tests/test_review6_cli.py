@@ -123,3 +123,43 @@ def test_manifest_entry_with_trace_alone_still_works():
     from fdid_fmi.fleet import parse_manifest_text
     m = parse_manifest_text('[[entry]]\nmachine="m01"\naxis="x"\ntrace=["b.csv"]\n', "toml")
     assert m.entries[0].error is None and m.entries[0].traces[0].endswith("b.csv")
+
+
+# ------------------------------------------------------------------ 5. fleet: no output folder left
+_ENTRY = ('[[entry]]\nmachine="m01"\naxis="x"\ntraces=["x.csv"]\n'
+          'map = { t = "t_s", "x.cmd" = "x_cmd_mm", "x.act" = "x_mm" }\n')
+
+
+@pytest.mark.parametrize("out", ["new", "new/deeper/still"])
+def test_fleet_unreachable_scheduler_leaves_no_output_folder(tmp_path, capsys, out):
+    pytest.importorskip("distributed")
+    (tmp_path / "m.toml").write_text(_ENTRY)
+    _csv(tmp_path / "x.csv", _ramp_trace(n=300))
+    # before: the error was right but OUT/entries/ (empty) was left behind
+    code = _exit_code(["fleet", "run", tmp_path / "m.toml", "--out", tmp_path / out, "--scheduler", "bogus"])
+    line = _one_error(capsys, "fdid fleet")
+    assert code == 2 and "Dask scheduler" in line, line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.toml", "x.csv"]
+
+
+def test_fleet_failure_keeps_what_existed_before(tmp_path, capsys):
+    pytest.importorskip("distributed")
+    (tmp_path / "m.toml").write_text(_ENTRY)
+    _csv(tmp_path / "x.csv", _ramp_trace(n=300))
+    out = tmp_path / "out"
+    (out / "entries" / "old").mkdir(parents=True)
+    (out / "notes.txt").write_text("mine")
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    for o in (out, empty):
+        assert _exit_code(["fleet", "run", tmp_path / "m.toml", "--out", o, "--scheduler", "bogus"]) == 2
+        assert "Dask scheduler" in _one_error(capsys, "fdid fleet")
+    assert (out / "notes.txt").read_text() == "mine" and (out / "entries" / "old").is_dir()
+    assert empty.is_dir() and list(empty.iterdir()) == []      # existed: kept; its entries/ was new
+
+
+def test_fleet_bad_previous_leaves_no_output_folder(tmp_path, capsys):
+    (tmp_path / "m.toml").write_text(_ENTRY)
+    code = _exit_code(["fleet", "run", tmp_path / "m.toml", "--out", tmp_path / "o", "--previous", tmp_path / "o"])
+    assert code == 2 and "--previous" in _one_error(capsys, "fdid fleet")
+    assert not (tmp_path / "o").exists()

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import sys
 import time
 from dataclasses import asdict, dataclass, field
@@ -301,6 +302,68 @@ def _lost(item: WorkItem, exc) -> EntryResult:
 
 
 # ----------------------------------------------------------------------------- run
+def _make_folder(path: Path) -> list:
+    """Create the folder ``path`` (and its missing parents); return the folders this call created,
+    deepest first (those :func:`_remove_empty` may take away again)."""
+    created, p = [], path
+    while not os.path.lexists(p) and p.parent != p:
+        created.append(p)
+        p = p.parent
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        _remove_empty(created)
+        raise InputError(f"cannot create the output folder ({exc.strerror or exc})", source=str(path.parent)) from None
+    return created
+
+
+def _remove_empty(created):
+    """Remove the folders :func:`_make_folder` created, deepest first, while they are empty
+    (never a folder that existed before, nor anything in it)."""
+    for d in created:
+        try:
+            d.rmdir()
+        except OSError:
+            break
+
+
+def _prepare(man, out, previous, scheduler, workers, client, thresholds):
+    """The entries to run (those already done with the same inputs are skipped) and the executor
+    (local pool or Dask cluster; None when nothing is to be done)."""
+    if previous is not None and Path(previous).resolve() == out.resolve():
+        raise InputError("--previous must be another fleet folder than --out", source=str(previous))
+    prev_models, prev_name, prev_version = _previous_models(previous)
+    workers = worker_count(workers)
+
+    version = software_version()
+    results: dict[str, EntryResult] = {}
+    todo: list[WorkItem] = []
+    skipped = []
+    for spec in man.entries:
+        h = entry_hash(spec, version)
+        prev = prev_models.get(spec.key) if spec.error is None else None
+        ck = _compare_key(h, prev, thresholds)
+        edir = out / "entries" / spec.dirname
+        if spec.error is not None:      # (its names may not be usable as a folder)
+            results[spec.key] = EntryResult(spec.machine, spec.axis, "failed", h, error=spec.error,
+                                            deterministic=True)
+            continue
+        done = _finished(edir, h, ck)
+        if done is not None:
+            results[spec.key] = done
+            skipped.append(spec.key)
+            continue
+        todo.append(WorkItem(spec, str(edir.resolve()), h, version, prev, thresholds.to_dict(), ck))
+
+    ex = None
+    if todo:
+        if scheduler is not None or client is not None:
+            ex = _Dask(scheduler, client)
+        else:
+            ex = _LocalPool(workers)
+    return ex, todo, results, skipped, prev_name, prev_version, version
+
+
 def run_fleet(manifest, out, previous=None, scheduler=None, workers=None, client=None, progress=True,
               retries=1) -> FleetResult:
     """Identify, export, validate, diagnose (and compare) every entry of a fleet manifest.
@@ -328,42 +391,14 @@ def run_fleet(manifest, out, previous=None, scheduler=None, workers=None, client
     man = manifest if isinstance(manifest, Manifest) else load_manifest(manifest)
     thresholds = Thresholds.from_dict(man.thresholds, source=f"{man.source} [thresholds]")
     out = Path(out)
+    created = _make_folder(out / "entries")     # made now: an unwritable --out fails before any wait
     try:
-        (out / "entries").mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"cannot create the output folder ({exc.strerror or exc})", source=str(out)) from None
-    if previous is not None and Path(previous).resolve() == out.resolve():
-        raise InputError("--previous must be another fleet folder than --out", source=str(previous))
-    prev_models, prev_name, prev_version = _previous_models(previous)
-    workers = worker_count(workers)
-
-    version = software_version()
-    results: dict[str, EntryResult] = {}
-    todo: list[WorkItem] = []
-    skipped = []
-    for spec in man.entries:
-        h = entry_hash(spec, version)
-        prev = prev_models.get(spec.key) if spec.error is None else None
-        ck = _compare_key(h, prev, thresholds)
-        edir = out / "entries" / spec.dirname
-        if spec.error is not None:      # (its names may not be usable as a folder)
-            results[spec.key] = EntryResult(spec.machine, spec.axis, "failed", h, error=spec.error,
-                                            deterministic=True)
-            continue
-        done = _finished(edir, h, ck)
-        if done is not None:
-            results[spec.key] = done
-            skipped.append(spec.key)
-            continue
-        todo.append(WorkItem(spec, str(edir.resolve()), h, version, prev, thresholds.to_dict(), ck))
-
+        ex, todo, results, skipped, prev_name, prev_version, version = _prepare(
+            man, out, previous, scheduler, workers, client, thresholds)
+    except BaseException:       # no scheduler, a bad --previous, Ctrl-C: leave no empty output folder
+        _remove_empty(created)
+        raise
     executed = [w.spec.key for w in todo]
-    ex = None
-    if todo:
-        if scheduler is not None or client is not None:
-            ex = _Dask(scheduler, client)
-        else:
-            ex = _LocalPool(workers)
     bar = None
     if progress and todo:
         from tqdm import tqdm
