@@ -88,3 +88,29 @@ def test_options_and_programs_refused_before_any_output(tmp_path, model_xy, caps
     for w in words:
         assert w in err, (w, err)
     assert not (tmp_path / "x.nc").exists()
+
+
+# --- 3: R arcs get the I/J arcs' end-point tolerance ---------------------------------------------
+
+@pytest.mark.parametrize("text, half_chord_mm", [
+    ("G21 G90 G17\nG1 X0 Y0 F3000\nG2 X20.0004 Y0 R10\n", 10.0002),
+    ("G20 G90 G17\nG1 X0 Y0 F100\nG2 X1.0001 Y0 R0.5\n", 0.50005 * 25.4),
+])
+def test_r_arc_rounded_past_half_the_chord_is_a_half_circle(text, half_chord_mm):
+    """Before: refused as '|R| = 10 mm is smaller than half the chord (10.0002 mm)', while an
+    I J arc whose end radius differs by up to 0.012 mm was read."""
+    arc = parse_program(text, source="r.nc").blocks[-1]
+    assert arc.kind == "arc" and arc.sweep == pytest.approx(math.pi, abs=1e-12)
+    assert arc.r0 == pytest.approx(half_chord_mm, rel=1e-12) and arc.r1 == pytest.approx(arc.r0, rel=1e-12)
+    top = arc.point(arc.length / 2)[0]                 # clockwise from the left end: over the top
+    assert top[0] == pytest.approx(half_chord_mm, rel=1e-12)
+    assert top[1] == pytest.approx(half_chord_mm, rel=1e-12)
+    assert np.array_equal(arc.point(arc.length)[0], arc.end)
+
+
+def test_r_arc_beyond_the_tolerance_still_refused_naming_it():
+    # |R| = 10 mm: the tolerance at half chord 10.0125 mm is 0.002 + 0.0100125 = 0.0120125 mm
+    parse_program("G1 X0 Y0 F3000\nG2 X20.024 Y0 R10\n")                      # 0.012 over: read
+    with pytest.raises(InputError, match=r"row 2: .*half the chord \(10.0125 mm\) by 0.0125 mm, "
+                                         r"more than the end-point tolerance 0.012 mm"):
+        parse_program("G1 X0 Y0 F3000\nG2 X20.025 Y0 R10\n", source="r.nc")

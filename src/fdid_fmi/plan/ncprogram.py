@@ -30,7 +30,9 @@ Anything else (another G code, ``A B C U V W`` axes, parameters ``#``, expressio
 an :class:`~fdid_fmi.errors.InputError` naming the file and line.
 
 Arc checks: an ``I J K`` arc whose end point is not on its circle (|r_end - r_start| larger than
-0.002 mm + 0.1 % of the radius) is refused, as are ``R`` arcs shorter than half the chord, arcs
+the end-point tolerance 0.002 mm + 0.1 % of the radius, :func:`radius_tolerance`) is refused, as
+are ``R`` arcs whose |R| is shorter than half the chord by more than that same tolerance (within
+it, the rounding of the words: a half circle on the chord, radius half the chord), arcs
 with both ``R`` and ``I J K`` and arcs with an offset word outside their plane. When the two
 radii differ within the tolerance the arc's radius changes linearly along it (as LinuxCNC does).
 """
@@ -59,6 +61,14 @@ _GROUPS = {0: "motion", 1: "motion", 2: "motion", 3: "motion", 4: "dwell",
 _WORD = re.compile(r"\s*([A-Za-z])\s*([+-]?(?:\d+\.?\d*|\.\d+))")
 _RADIUS_ABS_TOL = 0.002        # mm
 _RADIUS_REL_TOL = 1e-3
+
+
+def radius_tolerance(r_mm):
+    """How far an arc's end point may miss its circle (rounding of the programmed words), mm:
+    0.002 mm + 0.1 % of the radius ``r_mm``. The one tolerance of both arc forms: an ``I J K``
+    arc's end radius may differ from its start radius by this much, and an ``R`` arc's half chord
+    may exceed |R| by this much (then read as a half circle on the chord)."""
+    return _RADIUS_ABS_TOL + _RADIUS_REL_TOL * r_mm
 
 
 @dataclass
@@ -410,10 +420,12 @@ def _arc(index, row, number, raw, start, end, cw, st, vals, scale, source):
         d = float(np.linalg.norm(p1 - p0))
         if d == 0:
             raise _err(f"{name} with R needs an end point different from the start", source, row)
-        if abs(R) < d / 2 * (1 - 1e-9):
+        short = d / 2 - abs(R)
+        if short > radius_tolerance(d / 2):
             raise _err(f"arc radius |R| = {abs(R):.6g} mm is smaller than half the chord "
-                       f"({d / 2:.6g} mm)", source, row)
-        h = math.sqrt(max(R * R - d * d / 4, 0.0))
+                       f"({d / 2:.6g} mm) by {short:.3g} mm, more than the end-point tolerance "
+                       f"{radius_tolerance(d / 2):.3g} mm", source, row)
+        h = math.sqrt(max(R * R - d * d / 4, 0.0))   # 0 within the tolerance: a half circle
         mid = (p0 + p1) / 2
         perp = np.array([-(p1 - p0)[1], (p1 - p0)[0]]) / d        # left of the chord
         # the centre of the shorter arc lies right of the chord for a clockwise arc
@@ -428,7 +440,7 @@ def _arc(index, row, number, raw, start, end, cw, st, vals, scale, source):
     r1 = float(np.linalg.norm(p1 - c))
     if r0 == 0:
         raise _err(f"{name}: the start point is the centre (radius 0)", source, row)
-    tol = _RADIUS_ABS_TOL + _RADIUS_REL_TOL * max(r0, r1)
+    tol = radius_tolerance(max(r0, r1))
     if abs(r1 - r0) > tol:
         raise _err(f"{name}: the end point is not on the arc: radius {r0:.6g} mm at the start, "
                    f"{r1:.6g} mm at the end (difference {abs(r1 - r0):.3g} mm > {tol:.3g} mm)",
