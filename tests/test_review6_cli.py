@@ -163,3 +163,18 @@ def test_fleet_bad_previous_leaves_no_output_folder(tmp_path, capsys):
     code = _exit_code(["fleet", "run", tmp_path / "m.toml", "--out", tmp_path / "o", "--previous", tmp_path / "o"])
     assert code == 2 and "--previous" in _one_error(capsys, "fdid fleet")
     assert not (tmp_path / "o").exists()
+
+
+# ------------------------------------------------------------------ 6. fleet run DIR
+def test_fleet_run_of_a_directory_says_it_is_a_directory(tmp_path, capsys):
+    d = tmp_path / "night1"
+    d.mkdir()
+    (d / "plant.toml").write_text(_ENTRY)
+    # before: "night1: manifest file not found", though night1 exists
+    code = _exit_code(["fleet", "run", d, "--out", tmp_path / "o"])
+    line = _one_error(capsys, "fdid fleet")
+    assert code == 2 and "is a directory, not a manifest file" in line and "plant.toml" in line, line
+    assert "not found" not in line
+    code = _exit_code(["fleet", "run", tmp_path / "none.toml", "--out", tmp_path / "o"])
+    assert code == 2 and "manifest file not found" in _one_error(capsys, "fdid fleet")
+    assert not (tmp_path / "o").exists()

@@ -452,8 +452,17 @@ def parse_manifest_text(text, fmt, base=".", source="<manifest>") -> Manifest:
 def load_manifest(path) -> Manifest:
     """Read a ``.toml`` or ``.csv`` manifest file (see the module docstring)."""
     p = Path(path)
+    if p.is_dir():          # was "manifest file not found", though the path exists
+        try:
+            inside = sorted(f.name for f in p.iterdir() if f.suffix.lower() == ".toml" and f.is_file())
+        except OSError:
+            inside = []
+        hint = f" (TOML files there: {', '.join(inside[:3])}{', ...' if len(inside) > 3 else ''})" if inside else ""
+        raise InputError(f"is a directory, not a manifest file; give the .toml or .csv manifest{hint}",
+                         source=str(p))
     if not p.is_file():
-        raise InputError("manifest file not found", source=str(p))
+        raise InputError("manifest file not found" if not p.exists() else "is not a regular file, "
+                         "not a manifest file", source=str(p))
     fmt = {".toml": "toml", ".csv": "csv"}.get(p.suffix.lower())
     if fmt is None:
         raise InputError(f"a manifest is .toml or .csv, not '{p.suffix}'", source=str(p))
