@@ -72,7 +72,7 @@ def test_program_moving_some_unmodelled_axes_still_warns(tmp_path, model_xy, cap
     ("G1 X10 Y5 F3000\n", ["--limits", LIMITS, "--start", "0,0,nan"], ["'--start'", "0,0,nan"]),
     ("G1 X10 Y5 F3000\n", ["--limits", LIMITS, "--commands", "{tmp}/tr.csv"], ["'--limits'", "--commands"]),
     ("G1 X10 Y5 F3000\n", ["--commands", "{tmp}/tr.csv", "--optimize", "--tol", "0.01"], ["'--optimize'"]),
-    ("", ["--limits", LIMITS], ["p.nc", "no motion block"]),
+    ("", ["--limits", LIMITS], ["p.nc", "empty (0 bytes)"]),
     ("(only a comment)\nM30\n", ["--limits", LIMITS], ["p.nc", "no motion block"]),
     ("G4 P1\nG1 X0 F100\n", ["--limits", LIMITS], ["p.nc", "moves no axis"]),
 ])
@@ -114,3 +114,28 @@ def test_r_arc_beyond_the_tolerance_still_refused_naming_it():
     with pytest.raises(InputError, match=r"row 2: .*half the chord \(10.0125 mm\) by 0.0125 mm, "
                                          r"more than the end-point tolerance 0.012 mm"):
         parse_program("G1 X0 Y0 F3000\nG2 X20.025 Y0 R10\n", source="r.nc")
+
+
+# --- 4: a Latin-1 / Windows-1252 comment ---------------------------------------------------------
+
+LATIN1 = "G21 G90 G17\nG1 X10 F3000\nG1 Y10\nG1 X0\nG1 Y0 (Tiefe \u00d8 10)\nM30\n"
+
+
+def test_latin1_comment_is_read_and_written_back_in_latin1(tmp_path):
+    """Before: 'is not a text file (invalid continuation byte)', no line, the whole program
+    refused for one comment."""
+    from fdid_fmi.plan.ncprogram import write_program
+    nc = _nc(tmp_path, LATIN1, "latin1_line5.nc", encoding="latin-1")
+    prog = read_program(nc)
+    assert [b.line for b in prog.blocks] == [2, 3, 4, 5] and prog.encoding == "latin-1"
+    assert prog.lines[4] == "G1 Y0 (Tiefe \u00d8 10)"
+    write_program(prog, {0: 10.0}, path=tmp_path / "out.nc")
+    out = (tmp_path / "out.nc").read_bytes()
+    assert b"(Tiefe \xd8 10)" in out and b"G1 X10 F600" in out       # the comment's byte kept
+    assert read_program(tmp_path / "out.nc").blocks[0].feed == pytest.approx(10.0)
+
+
+def test_latin1_character_outside_a_comment_names_its_line(tmp_path):
+    nc = _nc(tmp_path, LATIN1.replace("(Tiefe \u00d8 10)", "\u00d810"), "l1.nc", encoding="latin-1")
+    with pytest.raises(InputError, match=r"l1.nc, row 5: cannot read '\u00d810'"):
+        read_program(nc)

@@ -216,7 +216,7 @@ def run(args):
         if args.output:
             text = write_program(prog, fpl.new_feeds_mm_s(prog),
                                  header=f"feeds optimised by fdid plan for a contour tolerance of {args.tol:g} mm")
-            _write_text(args.output, text)
+            _write_text(args.output, text, prog.encoding)     # a Latin-1 program stays Latin-1
             print(f"optimised program: {args.output}")
     if args.report or args.json:
         rep = plan_report(prog, pr, model=model, tol_mm=args.tol, feed_plan=fpl, fmu=fmu)
@@ -238,9 +238,9 @@ def run(args):
     return 1 if (fpl is not None and not fpl.reachable) else 0
 
 
-def _write_text(path, text):
+def _write_text(path, text, encoding="utf-8"):
     try:
         from ..outputs import atomic_write
-        atomic_write(path, text.encode("utf-8"))
+        atomic_write(path, text.encode(encoding, "backslashreplace"))
     except ImportError:  # pragma: no cover
-        Path(path).write_text(text, encoding="utf-8")
+        Path(path).write_bytes(text.encode(encoding, "backslashreplace"))

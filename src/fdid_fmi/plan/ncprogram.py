@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..io.common import text_lines
+from ..io.common import read_text_file, text_lines
 
 INCH = 25.4
 _PLANES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}   # (first, second, normal) axis index
@@ -159,6 +159,8 @@ class Program:
     ignored : list of (line, word)   words passed over (S, M, T, ...)
     source : str
     lines : list[str]         the program text, line by line
+    encoding : str            ``utf-8``, or ``latin-1`` for a file that is not UTF-8 (written
+                              back in it: its comments keep their bytes)
     axes_used : list[str]     axes that move (``x``, ``y``, ``z``)
     """
 
@@ -167,6 +169,7 @@ class Program:
     ignored: list = field(default_factory=list)
     source: str = "<string>"
     lines: list = field(default_factory=list)
+    encoding: str = "utf-8"
 
     @property
     def axes_used(self):
@@ -181,15 +184,26 @@ class Program:
 
 
 def read_program(path, start=(0.0, 0.0, 0.0)):
-    """Read a part program file (see module docstring); the file is only read."""
+    """Read a part program file (see module docstring); the file is only read.
+
+    Decoded as the trace readers decode (:func:`fdid_fmi.io.common.read_text_file`): UTF-16/32
+    with a byte-order mark, else UTF-8, else Latin-1 (a controller's ``(Tiefe Ø 10)`` comment
+    in Windows-1252 / Latin-1); a file with NUL bytes is refused. ``Program.encoding`` says
+    which, so that :func:`write_program`'s output keeps the comments' bytes.
+    """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8", errors="strict")
-    except FileNotFoundError:
-        raise InputError("no such file", source=str(path)) from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"is not a text file ({exc.reason})", source=str(path)) from None
-    return parse_program(text, source=str(path), start=start)
+    text = read_text_file(path)
+    encoding = "utf-8"
+    if not text.isascii():
+        raw = path.read_bytes()
+        if not raw.startswith((b"\xff\xfe", b"\xfe\xff", b"\x00\x00\xfe\xff")):
+            try:
+                raw.decode("utf-8-sig")
+            except UnicodeDecodeError:
+                encoding = "latin-1"
+    prog = parse_program(text, source=str(path), start=start)
+    prog.encoding = encoding
+    return prog
 
 
 def _strip_comments(raw, source, row):
@@ -515,7 +529,7 @@ def write_program(program, feeds_mm_s, path=None, header=None):
         from ..outputs import atomic_write, check_output
         src = Path(program.source)
         check_output(path, inputs=[src] if src.is_file() else [], what="NC program")
-        atomic_write(path, text)
+        atomic_write(path, text.encode(program.encoding, "backslashreplace"))
     return text
 
 
