@@ -393,14 +393,18 @@ class QuasiStaticModel:
 
 def load_model(path):
     """Load a model JSON file written by ``save`` (state-space or quasi-static)."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError("model file not found", source=str(path))
+    from .io.common import check_file
+    path = check_file(path, what="model file")      # a directory is not "not found"
+    parse_int, pairs = _json_hooks()
     try:
-        d = json.loads(path.read_text(), object_pairs_hook=_unique_keys)
+        d = json.loads(path.read_text(), object_pairs_hook=pairs, parse_int=parse_int)
     except _DuplicateKey as exc:
         raise InputError(f"the key '{exc}' is given twice in one JSON object (which one is meant?)",
                          source=str(path), column=str(exc)) from None
+    except _LongInteger as exc:
+        key, digits = exc.args
+        raise InputError(f"{key} holds an integer of {digits} digits: a number too long (expected a "
+                         f"number below 1e308)", source=str(path), column=key) from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InputError(f"is not a JSON model file ({exc})", source=str(path)) from None
     except RecursionError:
@@ -416,13 +420,48 @@ class _DuplicateKey(Exception):
     """A JSON object names a key twice (json keeps the last one without a word)."""
 
 
-def _unique_keys(pairs):
-    d = {}
-    for k, v in pairs:
-        if k in d:
-            raise _DuplicateKey(k)
-        d[k] = v
-    return d
+class _LongInteger(Exception):
+    """A JSON integer too long for a float, with the key that holds it: (key, digits)."""
+
+
+MAX_INT_DIGITS = 308    # a longer integer is >= 1e308: no float (and past Python's int-string limit)
+
+
+class _TooLong:
+    """Placeholder of an over-long JSON integer until the object holding it names its key."""
+
+    def __init__(self, digits):
+        self.digits = digits
+
+
+def _holds(v, x):
+    return v is x or (isinstance(v, list) and any(_holds(e, x) for e in v))
+
+
+def _json_hooks():
+    """``(parse_int, object_pairs_hook)`` for ``json.loads`` of a model file: a key given twice
+    raises _DuplicateKey (json keeps the last one without a word); an integer of more than
+    MAX_INT_DIGITS digits raises _LongInteger naming the key that holds it (json's int() raised
+    a bare ValueError past 4300 digits, float() an OverflowError past 1e308)."""
+    long_ints = []
+
+    def parse_int(text):
+        digits = len(text.lstrip("-"))
+        if digits > MAX_INT_DIGITS:
+            long_ints.append(_TooLong(digits))
+            return long_ints[-1]
+        return int(text)
+
+    def pairs(items):
+        d = {}
+        for k, v in items:
+            if k in d:
+                raise _DuplicateKey(k)
+            if long_ints and _holds(v, long_ints[0]):     # only after a long integer was read
+                raise _LongInteger(k, long_ints[0].digits)
+            d[k] = v
+        return d
+    return parse_int, pairs
 
 
 def _check_header(d, source, kind):

@@ -345,9 +345,8 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
 
     from ..simulate import run_up, simulate
     from .layout import build_layout
-    fmu_path = Path(fmu_path)
-    if not fmu_path.is_file():
-        raise InputError("FMU file not found", source=str(fmu_path))
+    from ..io.common import check_file
+    fmu_path = check_file(fmu_path, what="FMU file")    # a directory is not "not found"
     if isinstance(tolerance_mm, bool) or not isinstance(tolerance_mm, (int, float, np.floating, np.integer)) \
             or not (np.isfinite(tolerance_mm) and tolerance_mm > 0):
         # NaN and <= 0 failed every FMU with a meaningless message, inf passed any FMU

@@ -9,15 +9,17 @@ from pathlib import Path
 from ..errors import InputError
 
 
-def check_file(path) -> Path:
-    """Return ``Path(path)`` after checking it is an existing, non-empty regular file."""
+def check_file(path, what="file") -> Path:
+    """Return ``Path(path)`` after checking it is an existing, non-empty regular file (the one
+    check of every file the user gives: a trace, a model, an FMU). ``what`` names it in the
+    messages (``"model file"``)."""
     p = Path(path)
     if not p.exists():
-        raise InputError("file not found", source=str(p))
+        raise InputError(f"{what} not found", source=str(p))
     if not p.is_file():
         raise InputError("is not a regular file (a directory?)", source=str(p))
     if p.stat().st_size == 0:
-        raise InputError("file is empty (0 bytes)", source=str(p))
+        raise InputError(f"{what} is empty (0 bytes)", source=str(p))
     return p
 
 

@@ -1,0 +1,137 @@
+"""Review 6: damaged model JSON files and file names -- one clear line (exit 2) naming the file, the
+key or parameter and what was expected; never an internal error, never a silently wrong model.
+
+Cases run the real ``fdid`` entry point in-process (``fdid_fmi.cli.main``), like
+tests/test_hostile_cli.py, on small hand-built models (no identification: fast)."""
+import copy
+import json
+
+import numpy as np
+import pytest
+
+from fdid_fmi.cli import main
+from fdid_fmi.errors import InputError
+from fdid_fmi.model import DriveModel, load_model
+from fdid_fmi.simulate import simulate
+
+TS = 1e-3
+D_FRIC = -1e-4      # same-sample response of a position to its friction input (as identified)
+
+
+def two_axis(v_tilde=1.0, level=1.0):
+    """A causal two-axis model dict (one state per axis, friction on both axes, positions and
+    errors respond to the friction in the same sample as an identified model's do)."""
+    a, f = 0.9, D_FRIC
+    return {"format": "fdid-fmi-model", "format_version": 2, "kind": "state_space", "Ts": TS,
+            "method": "hand-built", "A": [[a, 0.0], [0.0, a]],
+            "B": [[1 - a, 1e-4, 0.0, 0.0], [0.0, 0.0, 1 - a, 1e-4]],
+            "C": [[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]],
+            "D": [[0.0, f, 0.0, 0.0], [1.0, -f, 0.0, 0.0], [0.0, 0.0, 0.0, f], [0.0, 0.0, 1.0, -f]],
+            "inputs": [{"name": "x_cmd", "unit": "mm", "kind": "command", "axis": "x"},
+                       {"name": "x_dnf", "unit": "1", "kind": "friction", "axis": "x",
+                        "params": {"v_tilde": v_tilde, "level": level}},
+                       {"name": "y_cmd", "unit": "mm", "kind": "command", "axis": "y"},
+                       {"name": "y_dnf", "unit": "1", "kind": "friction", "axis": "y",
+                        "params": {"v_tilde": v_tilde, "level": level}}],
+            "outputs": [{"name": "x_pos", "unit": "mm", "kind": "position", "axis": "x"},
+                        {"name": "x_err", "unit": "mm", "kind": "error", "axis": "x"},
+                        {"name": "y_pos", "unit": "mm", "kind": "position", "axis": "y"},
+                        {"name": "y_err", "unit": "mm", "kind": "error", "axis": "y"}]}
+
+
+def trace_csv(path, n=3000):
+    """t_s, x/y commands and actual positions: back-and-forth moves with reversals."""
+    t = np.arange(n) * TS
+    x = 5.0 * (1 - np.cos(2 * np.pi * t / 1.5))
+    y = 3.0 * np.sin(2 * np.pi * t / 1.0)
+    rows = ["t_s,x_cmd_mm,x_mm,y_cmd_mm,y_mm"] + [
+        f"{a:.6g},{b!r},{b!r},{c!r},{c!r}" for a, b, c in zip(t, x.tolist(), y.tolist())]
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def run(capsys, *args):
+    """``fdid ARGS`` in-process: (exit code, stderr)."""
+    try:
+        code = main([str(a) for a in args])
+    except SystemExit as exc:            # argparse errors
+        code = exc.code
+    return code, capsys.readouterr().err
+
+
+def one_line(code, err, *words):
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert code == 2, (code, err)
+    assert len(lines) == 1, err
+    assert "Traceback" not in err and "internal error" not in err
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+    return lines[0]
+
+
+def write(path, d):
+    path.write_text(json.dumps(d))
+    return path
+
+
+@pytest.fixture
+def model(tmp_path):
+    return write(tmp_path / "m.json", two_axis())
+
+
+# ------------------------------------------------------------ 1. an integer too long for a number
+@pytest.mark.parametrize("cmd", ["export", "simulate"])
+def test_huge_integer_names_the_key(capsys, tmp_path, model, cmd):
+    text = model.read_text().replace(f'"Ts": {TS}', '"Ts": 1' + "0" * 5000)
+    assert '"Ts": 1000' in text
+    bad = tmp_path / "bigint.json"
+    bad.write_text(text)
+    before = bad.read_bytes()
+    argv = ["export", bad, "-o", tmp_path / "d.fmu"] if cmd == "export" else \
+        ["simulate", bad, trace_csv(tmp_path / "run.csv"), "-o", tmp_path / "p.csv"]
+    line = one_line(*run(capsys, *argv), "bigint.json", "column 'Ts'", "5001 digits", "too long")
+    assert "4300" not in line and "ValueError" not in line
+    assert bad.read_bytes() == before
+    assert not (tmp_path / "d.fmu").exists() and not (tmp_path / "p.csv").exists()
+
+
+def test_long_integer_inside_a_matrix_or_params_names_its_key(tmp_path):
+    """400 digits (past 1e308, within Python's int-string limit) was float()'s OverflowError."""
+    d = two_axis()
+    d["A"][1][1] = 10 ** 400
+    with pytest.raises(InputError, match=r"column 'A': .*401 digits"):
+        load_model(write(tmp_path / "a.json", d))
+    d = two_axis()
+    d["inputs"][1]["params"]["v_tilde"] = 10 ** 400
+    with pytest.raises(InputError, match=r"column 'v_tilde': .*401 digits"):
+        load_model(write(tmp_path / "v.json", d))
+    d = two_axis()
+    d["A"][1][1] = 0                        # an ordinary integer still reads as a number
+    assert load_model(write(tmp_path / "ok.json", d)).A[1, 1] == 0.0
+
+
+# ----------------------------------------------------------------- 5. a directory is not missing
+@pytest.mark.parametrize("cmd", ["simulate", "validate", "export", "validate-model"])
+def test_directory_is_not_a_regular_file(capsys, tmp_path, model, cmd):
+    adir = tmp_path / "adir"
+    adir.mkdir()
+    csv = trace_csv(tmp_path / "run.csv", n=200)
+    argv = {"simulate": ["simulate", adir, csv, "-o", tmp_path / "p.csv"],
+            "validate": ["validate", adir, csv],
+            "export": ["export", adir, "-o", tmp_path / "d.fmu"],
+            "validate-model": ["validate", tmp_path / "none.fmu", csv, "--model", adir]}[cmd]
+    if cmd == "validate-model":     # a real FMU, so the --model directory is what is refused
+        assert main(["export", str(model), "-o", str(tmp_path / "none.fmu")]) == 0
+        capsys.readouterr()
+    line = one_line(*run(capsys, *argv), "adir", "is not a regular file (a directory?)")
+    assert "not found" not in line
+
+
+def test_missing_and_empty_model_files(capsys, tmp_path):
+    csv = trace_csv(tmp_path / "run.csv", n=200)
+    one_line(*run(capsys, "simulate", tmp_path / "nope.json", csv, "-o", tmp_path / "p.csv"),
+             "nope.json", "model file not found")
+    one_line(*run(capsys, "validate", tmp_path / "nope.fmu", csv), "nope.fmu", "FMU file not found")
+    (tmp_path / "empty.json").write_text("")
+    one_line(*run(capsys, "export", tmp_path / "empty.json", "-o", tmp_path / "d.fmu"),
+             "empty.json", "model file is empty (0 bytes)")
