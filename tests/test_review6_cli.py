@@ -178,3 +178,87 @@ def test_fleet_run_of_a_directory_says_it_is_a_directory(tmp_path, capsys):
     code = _exit_code(["fleet", "run", tmp_path / "none.toml", "--out", tmp_path / "o"])
     assert code == 2 and "manifest file not found" in _one_error(capsys, "fdid fleet")
     assert not (tmp_path / "o").exists()
+
+
+# ------------------------------------------------------------------ 7. fdid align messages
+@pytest.fixture
+def align_files(tmp_path):
+    """Two small files standing for the controller trace and a sensor (every case here is
+    refused before either is read)."""
+    ctrl, acc = tmp_path / "ctrl.csv", tmp_path / "acc.csv"
+    ctrl.write_text("t_s,x_cmd_mm,x_mm\n0,0,0\n0.001,0,0\n")
+    acc.write_text("t_s,ax_g,ay_g,az_g\n0,0,0,1\n0.001,0,0,1\n")
+    return tmp_path, ctrl, acc
+
+
+def test_align_without_a_sensor_names_the_command_once(align_files, capsys):
+    d, ctrl, _ = align_files
+    # before: "fdid align: error: fdid align: give at least one sensor: ..."
+    assert _exit_code(["align", ctrl, "-o", d / "o.csv"]) == 2
+    line = _one_error(capsys, "fdid align")
+    assert line.count("fdid align") == 1 and "give at least one sensor" in line, line
+
+
+def test_align_json_and_output_on_one_file_says_so(align_files, capsys):
+    d, ctrl, acc = align_files
+    # before: "the JSON file would overwrite the input file X" (X is no input; it did not exist)
+    assert _exit_code(["align", ctrl, "--acc", acc, "-o", d / "x.out", "--json", d / "x.out"]) == 2
+    line = _one_error(capsys, "fdid align")
+    assert "the JSON file and the aligned trace (-o) are the same file" in line, line
+    assert "input" not in line and not (d / "x.out").exists()
+    # an input named as --json is still an input
+    assert _exit_code(["align", ctrl, "--acc", acc, "-o", d / "o.csv", "--json", acc]) == 2
+    assert "would overwrite the input file" in _one_error(capsys, "fdid align")
+
+
+@pytest.mark.parametrize("setting", ["name=a\nb", "name=a\tb", "axes=x,\ny"])
+def test_align_setting_with_a_control_character_is_refused(align_files, capsys, setting):
+    d, ctrl, acc = align_files
+    # before: name=a<newline>b ran, and its newline split the table rows and messages
+    assert _exit_code(["align", ctrl, "--acc", acc, setting, "-o", d / "o.csv"]) == 2
+    line = _one_error(capsys, "fdid align")
+    assert "control character" in line and "column '" + setting.split("=")[0] + "'" in line, line
+    assert not (d / "o.csv").exists()
+
+
+def test_align_file_name_with_a_line_break_needs_a_name(align_files, capsys):
+    d, ctrl, acc = align_files
+    odd = d / "head\nacc.csv"
+    odd.write_bytes(acc.read_bytes())
+    assert _exit_code(["align", ctrl, "--acc", odd, "-o", d / "o.csv"]) == 2
+    line = _one_error(capsys, "fdid align")
+    assert "give name=" in line and "head\\nacc" in line, line
+
+
+def test_align_unit_message_uses_an(tmp_path):
+    from fdid_fmi.align import read_accelerometer
+    from fdid_fmi.errors import InputError
+    f = tmp_path / "acc.csv"
+    f.write_text("t,ax,ay,az\n0,0,0,1\n0.001,0,0,1\n0.002,0,0,1\n")
+    # before: "a accelerometer column needs a acceleration unit"
+    with pytest.raises(InputError, match="an accelerometer column needs an acceleration unit"):
+        read_accelerometer(f)
+
+
+def test_no_common_motion_within_max_offset_names_the_bound():
+    from fdid_fmi.align.timing import coarse_offset
+    from fdid_fmi.errors import InputError
+    Ts = 1e-3
+    t = np.arange(0, 8, Ts)
+    env = np.zeros(t.size)
+    for a in (1.0, 2.5, 4.5, 6.0):               # four moves of the controller
+        env[(t > a) & (t < a + 0.4)] = 1.0
+    tau = t.copy()
+    sens = np.interp(tau + 1.24, t, env, right=0.0)   # the sensor's clock is 1.24 s behind
+    off, rho = coarse_offset(t, env, tau, sens)
+    assert off == pytest.approx(1.24, abs=2 * Ts) and rho > 0.9
+    # before: "... the records do not overlap in time, or the sensor did not see the moves" only
+    with pytest.raises(InputError) as ei:
+        coarse_offset(t, env, tau, sens, max_offset_s=0.5, what="accelerometer 'acc'")
+    msg = str(ei.value)
+    assert "no common motion" in msg and "--max-offset" in msg and "0.5 s" in msg, msg
+    unrelated = (tau % 0.9 < 0.05).astype(float)     # short blips every 0.9 s: another run
+    with pytest.raises(InputError) as ei:      # no common motion without a bound: no word of it
+        coarse_offset(t, env, tau, unrelated)
+    assert "no common motion" in str(ei.value)
+    assert "--max-offset" not in str(ei.value)

@@ -113,6 +113,11 @@ class SensorRecord:
         return float(1.0 / np.median(np.diff(self.tau)))
 
 
+def _a(word):
+    """``word`` with its indefinite article (an accelerometer, a grid encoder, an acceleration)."""
+    return f"{'an' if word[:1].lower() in 'aeiou' else 'a'} {word}"
+
+
 def read_sensor(path, kind, columns=None, time=None, unit=None, axes=("x", "y"), name=None,
                 sign=1.0, jitter_tol=0.05) -> SensorRecord:
     """Read one sensor's columns from a CSV/TXT file.
@@ -189,7 +194,7 @@ def read_sensor(path, kind, columns=None, time=None, unit=None, axes=("x", "y"),
         q = UNITS.get(u, (None,))[0]
         if q != quantity:
             what = "no unit" if u == "1" else f"unit '{u}' ({q})"
-            raise InputError(f"has {what}; a {kind.replace('_', ' ')} column needs a {quantity} unit: "
+            raise InputError(f"has {what}; {_a(kind.replace('_', ' '))} column needs {_a(quantity)} unit: "
                              f"name it like {c}_{'g' if quantity == 'acceleration' else 'um'} or give "
                              f"unit=...", source=src, column=c)
         data.append(np.asarray(vals, dtype=float))

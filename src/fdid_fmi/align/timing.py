@@ -64,14 +64,19 @@ def coarse_offset(t, ref_env, tau, sens_env, max_offset_s=None, source=None, wha
     if max_offset_s is not None:
         ok = np.abs(off - (t[0] - tau[0])) <= max_offset_s
         if not ok.any():
-            raise InputError(f"{what}: no shift within max_offset_s = {max_offset_s} s", source=source)
+            raise InputError(f"{what}: no shift within max_offset_s = {max_offset_s} s (fdid align "
+                             f"--max-offset)", source=source)
         z = np.where(ok, z, -np.inf)
     k = int(np.argmax(z))
     rho = float(z[k] / (nr * ns))
     if rho < MIN_CORRELATION:
+        # a bound below the true offset hides the match: say so (it read as "no overlap")
+        bound = ("" if max_offset_s is None else
+                 f", or the offset lies beyond the searched {max_offset_s:g} s of the records' starts "
+                 f"(max_offset_s, fdid align --max-offset: give a larger bound or leave it out)")
         raise InputError(f"{what}: no common motion with the controller trace (best envelope "
                          f"correlation {rho:.2f} < {MIN_CORRELATION}): the records do not overlap in "
-                         f"time, or the sensor did not see the moves", source=source, column="time")
+                         f"time, or the sensor did not see the moves{bound}", source=source, column="time")
     return float(off[k]), rho
 
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import InputError, one_line
 from .argtypes import finite_float
 from .mapping import add_trace_arguments, trace_from_args
 
@@ -84,6 +84,9 @@ def parse_sensor(tokens, kind):
         seen[k] = tok
         if not v:
             raise InputError(f"'{tok}' has no value", source=opt, column=k)
+        if not v.isprintable():          # a line break in a name split the table and the messages
+            raise InputError(f"'{one_line(tok)}' holds a control character (line break, tab, ...); "
+                             f"give {k} in plain characters", source=opt, column=k)
         if k == "cols":
             kw["columns"] = [c.strip() for c in v.split(",") if c.strip()]
         elif k == "axes":
@@ -98,6 +101,10 @@ def parse_sensor(tokens, kind):
             kw["sign"] = float(v)
         else:
             kw[k] = v
+    if "name" not in kw and not Path(files[0]).stem.isprintable():    # the default name: the file's stem
+        raise InputError(f"the sensor name would be the file name '{one_line(Path(files[0]).stem)}', which "
+                         f"holds a control character; give name=... in plain characters", source=opt,
+                         column="name")
     return kw
 
 
@@ -130,18 +137,21 @@ def load_orientation(path):
 def run(args):
     from ..align import align, read_sensor
     from ..align.writer import write_trace_csv
-    from ..outputs import atomic_write, check_output
+    from ..outputs import atomic_write, check_output, same_file
     specs = [parse_sensor(t, "accelerometer") for t in args.acc] + \
             [parse_sensor(t, "grid_encoder") for t in args.kgm]
     if not specs:
-        raise InputError("give at least one sensor: --acc FILE or --kgm FILE", source="fdid align")
+        raise InputError("give at least one sensor: --acc FILE or --kgm FILE")   # (prog says fdid align)
     if args.orientation and not args.acc:      # it would be read and not used
         raise InputError("--orientation holds accelerometer orientations; it applies with --acc",
                          source="--orientation")
     inputs = [args.controller] + [s["path"] for s in specs] + ([args.orientation] if args.orientation else [])
     check_output(args.output, inputs=inputs, what="aligned trace")
     if args.json:
-        check_output(args.json, inputs=inputs + [args.output], what="JSON file")
+        if same_file(args.json, args.output):      # was "would overwrite the input file" (it is no input)
+            raise InputError("the JSON file and the aligned trace (-o) are the same file; give two names",
+                             source=args.json, column="--json")
+        check_output(args.json, inputs=inputs, what="JSON file")
     if getattr(args, "range", None):
         raise InputError("--range does not apply to fdid align (the whole record is aligned); give it "
                          "to fdid identify / diagnose on the aligned trace", source="--range")
