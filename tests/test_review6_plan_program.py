@@ -139,3 +139,39 @@ def test_latin1_character_outside_a_comment_names_its_line(tmp_path):
     nc = _nc(tmp_path, LATIN1.replace("(Tiefe \u00d8 10)", "\u00d810"), "l1.nc", encoding="latin-1")
     with pytest.raises(InputError, match=r"l1.nc, row 5: cannot read '\u00d810'"):
         read_program(nc)
+
+
+# --- 5: small parse messages ---------------------------------------------------------------------
+
+@pytest.mark.parametrize("word, digits", [("X1e9", "X1000000000"), ("Y-1.5E-3", "Y-0.0015")])
+def test_exponent_notation_is_named_as_such(word, digits):
+    """Before: "word 'e9' is not supported" (the number read as X1 and a word e9)."""
+    with pytest.raises(InputError, match=rf"e.nc, row 2: '{word}': exponent notation is not G-code: "
+                                         rf"write the number in digits \({digits}\)"):
+        parse_program(f"G21 G90\nG1 {word} F100\n", source="e.nc")
+
+
+def test_block_delete_is_run_and_said(tmp_path, model_xy, capsys):
+    """'/' is read as a controller with its block-delete switch off reads it (module docstring):
+    the block runs. Before: run with no word; now listed in Program.notes and printed."""
+    prog = parse_program("G21 G90 F3000\nG1 X10\n/N60 G1 X100 Y5\nG1 X0 Y0\n")
+    assert [b.line for b in prog.blocks] == [2, 3, 4] and prog.blocks[1].end[0] == 100.0
+    assert prog.notes == [(3, "'/' (block delete) block run, as with the block-delete switch off")]
+    nc = _nc(tmp_path, "G21 G90 F3000\nG1 X10\n/N60 G1 X12 Y5\nG1 X0 Y0\n")
+    code, out, err = _plan(capsys, nc, "--model", model_xy, "--limits", LIMITS)
+    assert code == 0, err
+    assert "note: row 3: '/' (block delete) block run" in out
+
+
+def test_program_ends_at_the_closing_percent(tmp_path, model_xy, capsys):
+    """Before: the block after the closing '%' ran (G1 X20 here) and the passed-over list said
+    'line N' while the errors say 'row N'."""
+    text = "%\nG21 G90\nG1 X10 F3000 M8\n%\nG1 X20\nthis is no G-code\n"
+    prog = parse_program(text)
+    assert [b.line for b in prog.blocks] == [3] and prog.blocks[-1].end[0] == 10.0
+    assert prog.ignored == [(3, "M8"), (5, "not read: after the closing '%' of row 4"),
+                            (6, "not read: after the closing '%' of row 4")]
+    code, out, err = _plan(capsys, _nc(tmp_path, text), "--model", model_xy, "--limits", LIMITS)
+    assert code == 0, err
+    assert "passed over: row 3: M8, row 5: not read: after the closing '%' of row 4" in out
+    assert "line 3" not in out

@@ -178,8 +178,12 @@ def run(args):
     if unmodelled:      # the contour error is measured in the model's axes only
         print(f"  warning: the program moves {unmodelled}, which the twin does not model: their "
               f"tracking errors, and contour errors out of the model's axes {axes}, are not predicted")
-    if prog.ignored:
-        print(f"  passed over: {', '.join(f'line {r}: {w}' for r, w in prog.ignored[:20])}"
+    for r, text in prog.notes[:20]:
+        print(f"  note: row {r}: {text}")
+    if len(prog.notes) > 20:
+        print(f"  note: ... and {len(prog.notes) - 20} more")
+    if prog.ignored:        # 'row N', as the errors name a program line
+        print(f"  passed over: {', '.join(f'row {r}: {w}' for r, w in prog.ignored[:20])}"
               + (" ..." if len(prog.ignored) > 20 else ""))
     twin = {"model": model} if fmu is None else {"fmu": fmu}
     pr = predict(ip, tol_mm=args.tol, program=prog, **twin)

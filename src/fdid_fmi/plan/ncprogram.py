@@ -20,14 +20,21 @@ What is read
 * modal state: ``G17/G18/G19`` (XY / ZX / YZ plane), ``G20/G21`` (inch / mm: coordinates and
   feeds x 25.4), ``G90/G91`` (absolute / incremental), ``G93`` (inverse time: ``F`` = 1 / block
   time in minutes, needed on every feed block) and ``G94`` (``F`` in units per minute, modal).
-* ``N`` line numbers, ``O`` program numbers, ``%`` lines, ``( ... )`` and ``;`` comments.
+* ``N`` line numbers, ``O`` program numbers, ``( ... )`` and ``;`` comments.
+* ``%`` lines: the first opens the program (tape start), the second closes it: the lines after
+  the closing ``%`` are not read (a controller stops reading there), only listed.
+* block delete ``/``: the block is **run**, as a controller runs it with its block-delete switch
+  off (the switch's state is the operator's, not the program's), and listed in
+  ``Program.notes`` so that the user knows it was planned; delete the line to plan without it.
+* numbers are written in digits (``X1e9``, exponent notation, is not G-code and is refused).
 * passed over and listed (they do not move the axes): ``S M T H D`` words and the G codes
   ``G40 G49 G54-G59 G61 G64 G80`` (offsets and modes that do not change the programmed path).
 * ``M2`` / ``M30`` end the program: lines after them are listed as not run, not read (a CNC
   stops there; Fanuc-style subprograms often follow). ``M98`` / ``M99`` (subprogram call /
   return) stop with an error: their motion would be missing.
 Anything else (another G code, ``A B C U V W`` axes, parameters ``#``, expressions) stops with
-an :class:`~fdid_fmi.errors.InputError` naming the file and line.
+an :class:`~fdid_fmi.errors.InputError` naming the file and line (``row N``: line N of the file,
+the word every message and list of ``fdid plan`` uses).
 
 Arc checks: an ``I J K`` arc whose end point is not on its circle (|r_end - r_start| larger than
 the end-point tolerance 0.002 mm + 0.1 % of the radius, :func:`radius_tolerance`) is refused, as
@@ -59,6 +66,7 @@ _GROUPS = {0: "motion", 1: "motion", 2: "motion", 3: "motion", 4: "dwell",
            90: "distance", 91: "distance", 93: "feed mode", 94: "feed mode",
            90.1: "arc distance", 91.1: "arc distance"}
 _WORD = re.compile(r"\s*([A-Za-z])\s*([+-]?(?:\d+\.?\d*|\.\d+))")
+_EXPONENT = re.compile(r"[eE][+-]?\d+")
 _RADIUS_ABS_TOL = 0.002        # mm
 _RADIUS_REL_TOL = 1e-3
 
@@ -156,7 +164,8 @@ class Program:
     ----------
     blocks : list[Block]      motion and dwell blocks in program order
     start : ndarray (3,), mm  position before the first block (the origin)
-    ignored : list of (line, word)   words passed over (S, M, T, ...)
+    ignored : list of (line, word)   words passed over (S, M, T, ...) and lines not run or read
+    notes : list of (line, text)     how a block was read that the user should know (block delete)
     source : str
     lines : list[str]         the program text, line by line
     encoding : str            ``utf-8``, or ``latin-1`` for a file that is not UTF-8 (written
@@ -170,6 +179,7 @@ class Program:
     source: str = "<string>"
     lines: list = field(default_factory=list)
     encoding: str = "utf-8"
+    notes: list = field(default_factory=list)
 
     @property
     def axes_used(self):
@@ -248,6 +258,13 @@ def tokenize(code, source="<string>", row=None):
         value = float(m.group(2))
         if not math.isfinite(value):                 # 400 digits read as inf
             raise InputError(f"the number in '{m.group(0).strip()[:20]}...' is too large", source=source, row=row)
+        exp = _EXPONENT.match(code, m.end())
+        if exp:                                      # X1e9: not X1 and a word 'e9'
+            word = f"{m.group(1)}{m.group(2)}{exp.group(0)}"
+            v = float(m.group(2) + exp.group(0))
+            digits = f" ({m.group(1)}{np.format_float_positional(v, trim='-')})" if math.isfinite(v) else ""
+            raise InputError(f"'{word}': exponent notation is not G-code: write the number in "
+                             f"digits{digits}", source=source, row=row)
         words.append((m.group(1).upper(), value, m.group(0).strip()))
         pos = m.end()
     return words
@@ -271,14 +288,23 @@ def parse_program(text, source="<string>", start=(0.0, 0.0, 0.0)):
         raise InputError(f"start must be three finite numbers (x, y, z) in mm, got {start!r}", column="start")
     st = {"motion": None, "plane": 17, "units": "mm", "distance": 90, "arc distance": 91.1,
           "feed mode": 94, "feed": None, "f_word": None}
-    blocks, ignored = [], []
+    blocks, ignored, notes = [], [], []
     ended = None
+    percent = []                             # rows of the '%' lines read: opening, closing
     lines = text_lines(text)
     for row, raw in enumerate(lines, 1):
         line = raw.strip()
-        if not line or line.startswith("%"):
+        if len(percent) == 2:                # after the closing '%': not read (end of the tape)
+            if line:
+                ignored.append((row, f"not read: after the closing '%' of row {percent[1]}"))
             continue
-        if line.startswith("/"):             # block delete switch off: the block runs
+        if not line:
+            continue
+        if line.startswith("%"):
+            percent.append(row)
+            continue
+        deleted = line.startswith("/")       # block delete: run, as with the switch off
+        if deleted:
             line = line[1:]
         code = _strip_comments(line, source, row)
         words = tokenize(code, source, row)
@@ -287,6 +313,8 @@ def parse_program(text, source="<string>", start=(0.0, 0.0, 0.0)):
         if ended:
             ignored.append((row, f"not run: after {ended}"))
             continue
+        if deleted:
+            notes.append((row, "'/' (block delete) block run, as with the block-delete switch off"))
         ms = [(round(v, 1), txt) for letter, v, txt in words if letter == "M"]
         calls = [txt for m, txt in ms if m in (98, 99)]
         if calls:
@@ -300,7 +328,7 @@ def parse_program(text, source="<string>", start=(0.0, 0.0, 0.0)):
         if ends:
             ended = ends[0]                  # program end: a CNC runs nothing after it
     return Program(blocks=blocks, start=np.asarray(start, float), ignored=ignored, source=source,
-                   lines=lines)
+                   lines=lines, notes=notes)
 
 
 def _err(msg, source, row):
