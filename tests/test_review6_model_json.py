@@ -135,3 +135,67 @@ def test_missing_and_empty_model_files(capsys, tmp_path):
     (tmp_path / "empty.json").write_text("")
     one_line(*run(capsys, "export", tmp_path / "empty.json", "-o", tmp_path / "d.fmu"),
              "empty.json", "model file is empty (0 bytes)")
+
+
+# -------------------------------------------------- 2./4. damaged shapes and types name their key
+def _damaged(change):
+    d = two_axis()
+    change(d)
+    return d
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda d: d["B"].__setitem__(0, d["B"][0][:-1]),
+     ["column 'B'", "B must be a 2 x k matrix of numbers in rows of one length", "row 1 has 3 entries"]),
+    (lambda d: d.__setitem__("inputs", {"a": 1}),
+     ["column 'inputs'", "inputs must be a JSON array of port objects", "got dict"]),
+    (lambda d: d["outputs"].__setitem__(1, "x_err"),
+     ["column 'outputs'", "output 2 must be a JSON object", "got str 'x_err'"]),
+    (lambda d: d["inputs"][0].pop("unit"), ["column 'inputs'", "input 1 lacks 'unit'"]),
+    (lambda d: d["inputs"][0].__setitem__("gain", 2), ["column 'inputs'", "unknown key 'gain'"]),
+    (lambda d: d.__setitem__("poles", "x"),
+     ["column 'poles'", "poles must be a JSON array of [real, imag] pairs", "got str 'x'"]),
+    (lambda d: d.__setitem__("poles", "12"), ["column 'poles'", "got str '12'"]),   # was poles 1, 2
+    (lambda d: d.__setitem__("poles", [[1.0, 2.0, 3.0]]), ["column 'poles'", "pole 1 must be"]),
+    (lambda d: d["A"][0].__setitem__(0, "0.9"),
+     ["column 'A'", "A must be a square matrix of numbers, got str '0.9' at A[0][0]"]),
+    (lambda d: d["A"][1].__setitem__(1, True), ["column 'A'", "got bool True at A[1][1]"]),
+    (lambda d: d["D"][1].__setitem__(0, "1"), ["column 'D'", "got str '1' at D[1][0]"]),
+    (lambda d: d["C"][0].__setitem__(0, None), ["column 'C'", "got NoneType None at C[0][0]"]),
+    (lambda d: d["A"][0].__setitem__(0, 1e308), ["column 'A'", "magnitude 1e+308 (at most 1e+150)"]),
+    (lambda d: d.__setitem__("Ts", float("inf")), ["column 'Ts'", "must be a finite number > 0, got inf"]),
+])
+def test_damaged_model_names_the_key(capsys, tmp_path, change, words):
+    bad = write(tmp_path / "bad.json", _damaged(change))
+    line = one_line(*run(capsys, "export", bad, "-o", tmp_path / "d.fmu"), "bad.json", *words)
+    assert "sequence" not in line and "argument after" not in line and "malformed" not in line
+    assert not (tmp_path / "d.fmu").exists()
+
+
+def test_string_in_a_matrix_is_not_blamed_on_stability(tmp_path):
+    """'1.0' for A[0][0] was read as 1.0 and then refused as 'the model is not stable'."""
+    with pytest.raises(InputError) as exc:
+        load_model(write(tmp_path / "m.json", _damaged(lambda d: d["A"][0].__setitem__(0, "1.0"))))
+    assert "stable" not in str(exc.value) and "got str '1.0'" in str(exc.value)
+
+
+def test_unstable_model_prints_a_readable_spectral_radius(tmp_path):
+    d = _damaged(lambda d: d["A"][0].__setitem__(0, 1e149))
+    with pytest.raises(InputError, match=r"spectral radius of A = 1e\+149\)"):
+        load_model(write(tmp_path / "m.json", d))
+    d = _damaged(lambda d: d["A"][0].__setitem__(0, 1.5))
+    with pytest.raises(InputError, match=r"spectral radius of A = 1\.500000\)"):
+        load_model(write(tmp_path / "m.json", d))
+
+
+def test_valid_shapes_still_load(tmp_path):
+    d = two_axis()
+    d["poles"] = [[-10.0, 5.0], [-10.0, -5.0], -3.0]
+    d["A"] = [[0.9, 0], [0, 0.9]]           # integers are numbers
+    m = load_model(write(tmp_path / "m.json", d))
+    assert m.poles == [complex(-10, 5), complex(-10, -5), complex(-3, 0)]
+    assert m.A.dtype == float and m.A[0, 1] == 0.0
+    m2 = DriveModel(Ts=TS, A=np.array([[0.5]]), B=np.array([[0.5, 1e-4]]), C=np.array([[1.0], [-1.0]]),
+                    D=np.array([[0.0, 0.0], [1.0, 0.0]]), inputs=copy.deepcopy(m.inputs[:2]),
+                    outputs=copy.deepcopy(m.outputs[:2]), poles=np.array([-1 + 2j]))
+    assert m2.poles == [complex(-1, 2)] and m2.copy().A[0, 0] == 0.5

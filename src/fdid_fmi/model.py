@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, finite_number
 
 FORMAT = "fdid-fmi-model"
 FORMAT_VERSION = 2          # 2: causal models (no same-sample response to commands)
@@ -130,7 +130,7 @@ class DriveModel:
     provenance: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        self.A = np.atleast_2d(np.asarray(self.A, dtype=float))
+        self.A = np.atleast_2d(_numbers(self.A, "A", "square matrix"))
         if self.A.ndim != 2 or self.A.shape[0] != self.A.shape[1] or not self.A.shape[0]:
             raise InputError(f"A must be a square matrix with at least one state, got shape "
                              f"{self.A.shape}", column="A")
@@ -138,10 +138,9 @@ class DriveModel:
         self.B = _matrix(self.B, n, -1, "B")
         self.C = _matrix(self.C, -1, n, "C")
         self.D = _matrix(self.D, self.C.shape[0], self.B.shape[1], "D")
-        self.inputs = [p if isinstance(p, Port) else Port(**p) for p in self.inputs]
-        self.outputs = [p if isinstance(p, Port) else Port(**p) for p in self.outputs]
-        self.poles = [complex(p) if not isinstance(p, (list, tuple)) else complex(p[0], p[1])
-                      for p in self.poles]
+        self.inputs = _ports(self.inputs, "inputs")
+        self.outputs = _ports(self.outputs, "outputs")
+        self.poles = _poles(self.poles)
         self.validate()
 
     # ----------------------------------------------------------- structure
@@ -178,8 +177,10 @@ class DriveModel:
         for arr, nm in ((self.A, "A"), (self.B, "B"), (self.C, "C"), (self.D, "D")):
             if not np.isfinite(arr).all():
                 raise InputError("contains NaN or inf", column=nm)
-        if not (np.isfinite(self.Ts) and self.Ts > 0):
-            raise InputError(f"sample time must be positive, got {self.Ts!r}", column="Ts")
+            if arr.size and np.max(np.abs(arr)) > MAX_ABS:      # before eigvals: rho was 1e308
+                raise InputError(f"has an entry of magnitude {float(np.max(np.abs(arr))):.3g} "
+                                 f"(at most {MAX_ABS:g})", column=nm)
+        finite_number(self.Ts, "Ts", positive=True)    # inf was "must be positive"
         axes = self.axes
         for prt in self.inputs:     # one command per axis: a second one would never be fed
             if prt.kind == "command" and (not isinstance(prt.axis, str) or axes.count(prt.axis) > 1):
@@ -207,7 +208,8 @@ class DriveModel:
         self._check_causal()
         rho = max(abs(np.linalg.eigvals(self.A))) if n else 0.0
         if rho >= 1.0:
-            raise InputError(f"the model is not stable (spectral radius of A = {rho:.6f})", column="A")
+            shown = f"{rho:.6f}" if rho < 1e6 else f"{rho:.3g}"     # not 150 digits
+            raise InputError(f"the model is not stable (spectral radius of A = {shown})", column="A")
         check_simulation_numbers(self)
 
     def _check_causal(self):
@@ -485,7 +487,8 @@ def _matrix(x, rows, cols, name):
     """``x`` as a float matrix of ``rows`` x ``cols`` (-1: any). A vector or a number is reshaped
     (one input or output); a matrix must have the shape already: reshaping a transposed B
     would scramble the model without a word."""
-    a = np.asarray(x, dtype=float)
+    want = " x ".join("k" if w == -1 else str(w) for w in (rows, cols))
+    a = _numbers(x, name, f"{want} matrix")
     if a.ndim == 2 and all(w in (-1, g) for w, g in zip((rows, cols), a.shape)):
         return a
     if a.ndim < 2:
@@ -493,8 +496,93 @@ def _matrix(x, rows, cols, name):
             return a.reshape(rows, cols)
         except ValueError:
             pass
-    want = " x ".join("k" if w == -1 else str(w) for w in (rows, cols))
     raise InputError(f"must be a {want} matrix, got shape {a.shape}", column=name)
+
+
+REAL_TYPES = (int, float, np.integer, np.floating)     # bool (an int) is refused apart
+
+
+def _not_number(x, depth=0):
+    """``(position, value)`` of the first entry of ``x`` (a number, a list of numbers or a list
+    of such rows) that is not a real number (a string, a boolean, null, an object, a list nested
+    deeper), or None."""
+    if isinstance(x, np.ndarray) and x.dtype.kind in "fiu":
+        return None
+    if isinstance(x, (list, tuple, np.ndarray)) and depth < 2:
+        for k, v in enumerate(x):
+            if type(v) is not float:        # the common case, at no cost
+                bad = _not_number(v, depth + 1)
+                if bad is not None:
+                    return f"[{k}]{bad[0]}", bad[1]
+        return None
+    if isinstance(x, REAL_TYPES) and not isinstance(x, bool):
+        return None
+    return "", x
+
+
+def _numbers(x, name, want="matrix"):
+    """``x`` as a float array (at most 2-D) when it holds real numbers only, in rows of one
+    length; else InputError naming ``name``: numpy read the string '1.0' and true as numbers
+    without a word, and rows of different lengths as an error about sequences."""
+    bad = _not_number(x)
+    if bad is not None:
+        where, v = bad
+        raise InputError(f"{name} must be a {want} of numbers, got {type(v).__name__} {_short(v)}"
+                         f"{' at ' + name + where if where else ''}", column=name)
+    try:
+        return np.asarray(x, dtype=float)
+    except OverflowError:   # a Python int past 1e308
+        raise InputError(f"{name} holds a number too large (expected numbers below 1e308)",
+                         column=name) from None
+    except ValueError:      # rows of different lengths (the entries are numbers)
+        lens = [len(r) if isinstance(r, (list, tuple, np.ndarray)) else None for r in x]
+        k = next((k for k, n in enumerate(lens) if n != lens[0]), 0)
+        what = lambda n: "a number" if n is None else f"{n} entries"       # noqa: E731
+        raise InputError(f"{name} must be a {want} of numbers in rows of one length, but row 1 has "
+                         f"{what(lens[0])} and row {k + 1} {what(lens[k])}", column=name) from None
+
+
+def _ports(x, what):
+    """``x`` (a model's ``inputs`` or ``outputs``) as a list of :class:`Port`: a JSON array of
+    objects with the fields of Port (name, unit, kind required)."""
+    if not isinstance(x, (list, tuple)):
+        raise InputError(f"{what} must be a JSON array of port objects (name, unit, kind, axis, "
+                         f"params), got {type(x).__name__} {_short(x)}", column=what)
+    fields = list(Port.__dataclass_fields__)
+    out = []
+    for k, p in enumerate(x):
+        if isinstance(p, Port):
+            out.append(p)
+            continue
+        if not isinstance(p, dict):
+            raise InputError(f"{what[:-1]} {k + 1} must be a JSON object ({', '.join(fields)}), got "
+                             f"{type(p).__name__} {_short(p)}", column=what)
+        unknown = [key for key in p if key not in fields]
+        missing = [key for key in fields[:3] if key not in p]
+        if unknown or missing:
+            raise InputError(f"{what[:-1]} {k + 1} " + (f"has the unknown key {_short(unknown[0])}"
+                             if unknown else f"lacks '{missing[0]}'") + f"; expected the keys "
+                             f"{', '.join(fields)}", column=what)
+        out.append(Port(**p))
+    return out
+
+
+def _poles(x):
+    """``x`` as a list of complex poles [rad/s]: a JSON array of numbers or [real, imag] pairs."""
+    if not isinstance(x, (list, tuple, np.ndarray)):
+        raise InputError(f"poles must be a JSON array of [real, imag] pairs in rad/s, got "
+                         f"{type(x).__name__} {_short(x)}", column="poles")
+    out = []
+    for k, p in enumerate(x):
+        if isinstance(p, (complex, np.complexfloating)):
+            out.append(complex(p))
+            continue
+        pair = p if isinstance(p, (list, tuple)) else [p, 0.0]
+        if len(pair) != 2 or _not_number(pair) is not None:
+            raise InputError(f"pole {k + 1} must be a number or a [real, imag] pair of numbers in "
+                             f"rad/s, got {_short(p)}", column="poles")
+        out.append(complex(float(pair[0]), float(pair[1])))
+    return out
 
 
 def _find(ports, kind, axis, name):
@@ -662,17 +750,14 @@ def check_simulation_numbers(model):
 
     Ts in TS_RANGE; friction ``v_tilde`` > 0 and ``level`` finite >= 0; feature parameters
     (``v_tilde`` for sat/abs_sat/stribeck, ``v_s`` for stribeck/play_stribeck, ``period_mm`` for
-    sin/cos, ``source`` command/position, ``width_mm`` and source position for play/play_stribeck); matrix entries and the steady-state maps finite and at
-    most MAX_ABS in magnitude. Raises InputError naming the parameter.
+    sin/cos, ``source`` command/position, ``width_mm`` and source position for play/play_stribeck); the steady-state maps finite and at
+    most MAX_ABS in magnitude (the matrix entries are checked so by validate, before the
+    stability check). Raises InputError naming the parameter.
     """
     lo, hi = TS_RANGE
     if not lo <= model.Ts <= hi:
         raise InputError(f"sample time {float(model.Ts)!r} s is outside the supported range {lo:g} .. {hi:g} s",
                          column="Ts")
-    for arr, nm in ((model.A, "A"), (model.B, "B"), (model.C, "C"), (model.D, "D")):
-        if arr.size and np.max(np.abs(arr)) > MAX_ABS:
-            raise InputError(f"has an entry of magnitude {float(np.max(np.abs(arr))):.3g} "
-                             f"(at most {MAX_ABS:g})", column=nm)
     for prt in model.inputs:
         if prt.kind == "friction":
             _positive(prt, "v_tilde", "mm/s")
