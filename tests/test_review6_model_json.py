@@ -199,3 +199,15 @@ def test_valid_shapes_still_load(tmp_path):
                     D=np.array([[0.0, 0.0], [1.0, 0.0]]), inputs=copy.deepcopy(m.inputs[:2]),
                     outputs=copy.deepcopy(m.outputs[:2]), poles=np.array([-1 + 2j]))
     assert m2.poles == [complex(-1, 2)] and m2.copy().A[0, 0] == 0.5
+
+
+# ------------------------------------------------- 6. an FMU name with nothing before .fmu
+@pytest.mark.parametrize("name", [".fmu", ".FMU"])
+def test_stemless_fmu_name_says_what_is_wrong(capsys, tmp_path, model, name):
+    """'x/.fmu' is a hidden file without a name (a script's empty $NAME.fmu, most likely): it is
+    refused, saying so -- it was 'the FMU must end in .fmu', which it does."""
+    line = one_line(*run(capsys, "export", model, "-o", tmp_path / name), name,
+                    "has nothing before .fmu", "drive.fmu")
+    assert "must end in" not in line
+    assert not (tmp_path / name).exists()
+    one_line(*run(capsys, "export", model, "-o", tmp_path / "d.txt"), "the FMU must end in .fmu")

@@ -66,6 +66,9 @@ def check_output(path, inputs=(), what="output file", suffix=None) -> Path:
         raise InputError(f"the {what} name is empty")
     p = Path(path)
     src = str(p)
+    if suffix and p.name.lower() == suffix.lower():     # 'x/.fmu' has no suffix: a hidden file
+        raise InputError(f"the {what} name '{p.name}' has nothing before {suffix}; give a name such "
+                         f"as drive{suffix}", source=src)
     if suffix and p.suffix.lower() != suffix.lower():
         raise InputError(f"the {what} must end in {suffix}", source=src)
     for i in inputs:
