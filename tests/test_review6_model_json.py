@@ -211,3 +211,72 @@ def test_stemless_fmu_name_says_what_is_wrong(capsys, tmp_path, model, name):
     assert "must end in" not in line
     assert not (tmp_path / name).exists()
     one_line(*run(capsys, "export", model, "-o", tmp_path / "d.txt"), "the FMU must end in .fmu")
+
+
+# ----------------------------------------- 3. a v_tilde below what the friction solve resolves
+# two_axis: beta = |D_FRIC| / TS = 0.1 mm/s per unit friction, so the smallest v_tilde is
+# 1e-12 x level x 0.1 mm/s (model.FRICTION_RATIO_MAX)
+BETA = abs(D_FRIC) / TS
+
+
+def _commands(n=3000):
+    t = np.arange(n) * TS
+    return {"x": 5.0 * (1 - np.cos(2 * np.pi * t / 1.5)), "y": 3.0 * np.sin(2 * np.pi * t / 1.0)}
+
+
+@pytest.mark.parametrize("v_tilde", [1e-20, 1e-100, 1e-200, 1e-310])
+def test_tiny_v_tilde_is_refused_naming_it(capsys, tmp_path, v_tilde):
+    """Was accepted and simulated to 1e193 mm (exit 0) or to 'the model's outputs are not finite',
+    blamed on the trace."""
+    d = two_axis()
+    d["inputs"][1]["params"]["v_tilde"] = v_tilde
+    bad = write(tmp_path / "m.json", d)
+    csv = trace_csv(tmp_path / "run.csv")
+    for argv in (["simulate", bad, csv, "-o", tmp_path / "p.csv"], ["export", bad, "-o", tmp_path / "d.fmu"]):
+        line = one_line(*run(capsys, *argv), "m.json", "column 'x_dnf.v_tilde'",
+                        "v_tilde must be at least 1e-13 mm/s", "friction inputs")
+        assert "run.csv" not in line
+    assert not (tmp_path / "p.csv").exists() and not (tmp_path / "d.fmu").exists()
+
+
+@pytest.mark.parametrize("level", [1.0, 10.0])
+def test_v_tilde_bound_just_below_and_above(level):
+    lo = 1e-12 * level * BETA
+    with pytest.raises(InputError, match=r"column 'x_dnf.v_tilde': parameter v_tilde must be at least"):
+        DriveModel.from_dict(two_axis(v_tilde=0.99 * lo, level=level))
+    d = two_axis(v_tilde=1.0, level=level)
+    d["inputs"][3]["params"]["v_tilde"] = 0.99 * lo          # the other axis is checked too
+    with pytest.raises(InputError, match=r"column 'y_dnf.v_tilde'"):
+        DriveModel.from_dict(d)
+    m = DriveModel.from_dict(two_axis(v_tilde=1.01 * lo, level=level))
+    r = simulate(m, _commands(), Ts=TS)
+    assert np.isfinite(r.y).all()
+    d_fric = np.abs(r.u[:, [1, 3]])
+    assert d_fric.max() <= level * (1 + 1e-3), d_fric.max()    # the friction keeps to its level
+    assert d_fric.max() >= 0.99 * level                         # and reaches it (slides)
+
+
+def test_v_tilde_without_feed_through_keeps_its_gain_a_model_number(tmp_path):
+    """beta = 0: g = level / v_tilde overflowed from 1e-308 mm/s on (NaN outputs); the bound is
+    then level / MAX_ABS."""
+    d = two_axis(v_tilde=1e-310)
+    for row in d["D"]:
+        row[1] = row[3] = 0.0
+    with pytest.raises(InputError, match=r"x_dnf.v_tilde.*at least 1e-150 mm/s"):
+        DriveModel.from_dict(d)
+    for p in d["inputs"][1::2]:
+        p["params"]["v_tilde"] = 1.01e-150
+    r = simulate(DriveModel.from_dict(d), _commands(), Ts=TS)
+    assert np.isfinite(r.y).all() and np.abs(r.u[:, [1, 3]]).max() <= 1.0
+
+
+def test_one_friction_input_keeps_any_positive_v_tilde():
+    """One friction input is solved in closed form: |d| <= level at any v_tilde > 0 (kept)."""
+    d = two_axis(v_tilde=1e-300)
+    keep = [0, 1]
+    d["A"], d["B"], d["C"] = [[0.9]], [d["B"][0][:2]], [[1.0], [-1.0]]
+    d["D"] = [r[:2] for r in d["D"][:2]]
+    d["inputs"], d["outputs"] = [d["inputs"][k] for k in keep], [d["outputs"][k] for k in keep]
+    m = DriveModel.from_dict(d)
+    r = simulate(m, {"x": _commands()["x"]}, Ts=TS)
+    assert np.isfinite(r.y).all() and np.abs(r.u[:, 1]).max() <= 1.0

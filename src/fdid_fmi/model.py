@@ -783,6 +783,7 @@ def check_simulation_numbers(model):
                                      column=f"{prt.name}.source")
             if prt.axis is None:
                 raise InputError("a feature input needs an axis", column=prt.name)
+    check_friction_resolution(model)
     if model.A.shape[0]:
         with np.errstate(all="ignore"):
             maps = model.steady_state_maps()
@@ -790,6 +791,45 @@ def check_simulation_numbers(model):
             if not np.isfinite(arr).all() or (arr.size and np.max(np.abs(arr)) > MAX_ABS):
                 raise InputError(f"the steady-state map {nm} of the model is not finite (A has an "
                                  f"eigenvalue too close to 1)", column="A")
+
+
+# Smallest v_tilde the friction solve resolves. With several friction inputs, the step
+# (fmu_templates/fdid_core.c, solve_friction) solves each branch by LU with the linear rows
+# 1 - g beta, g = L / v_tilde (L the level, beta the velocity change per unit friction in one
+# sample: D of the velocity source, over Ts for a differenced position), and accepts the
+# linear branch when |v| = |alpha + beta d| <= v_tilde. v carries the rounding eps |alpha| of
+# that cancellation, so the accepted |d| may exceed L by eps L |beta| / v_tilde relative (measured:
+# 1e-5 at L |beta| / v_tilde = 2.4e11, 4e-3 at 2.4e13, 0.3 at 2.4e15 on the virtual two-axis
+# drive); from L |beta| / v_tilde ~ 1 / eps = 4.5e15 on, 1 - g beta loses its 1, the force is
+# unbounded and the outputs grow to 1e270 or to inf (the reviewer's 1e-20 .. 1e-310 mm/s; on
+# that drive 1e-17 mm/s already). FRICTION_RATIO_MAX keeps that excess below eps * 1e12 =
+# 2.2e-4 of L. g itself must stay a model number (<= MAX_ABS: with beta = 0, g = inf gave NaN
+# outputs from 1e-308 mm/s). One friction input is solved in closed form, |d| <= L at any
+# v_tilde > 0 (measured down to 1e-320 mm/s): no bound there.
+FRICTION_RATIO_MAX = 1e12
+
+
+def check_friction_resolution(model):
+    """Raise InputError naming ``<input>.v_tilde`` when a model with several friction inputs has
+    a v_tilde below L * max(sum_c |beta_qc| / FRICTION_RATIO_MAX, 1 / MAX_ABS) (see above)."""
+    fric = [i for i, p in enumerate(model.inputs) if p.kind == "friction"]
+    if len(fric) < 2:
+        return
+    for i in fric:
+        prt = model.inputs[i]
+        vo = model.output_index("velocity", prt.axis)
+        vo, scale = (vo, 1.0) if vo is not None else (model.output_index("position", prt.axis), model.Ts)
+        beta = float(np.sum(np.abs(model.D[vo, fric]))) / scale       # mm/s per unit friction
+        level, vt = float(prt.params.get("level", 1.0)), float(prt.params["v_tilde"])
+        lo = level * max(beta / FRICTION_RATIO_MAX, 1.0 / MAX_ABS)
+        if vt < lo:
+            why = (f"{1.0 / FRICTION_RATIO_MAX:g} x level {level:g} x {beta:.3g} mm/s, the velocity "
+                   f"change per unit friction in one sample" if beta / FRICTION_RATIO_MAX >= 1.0 / MAX_ABS
+                   else f"level {level:g} / {MAX_ABS:g}")
+            raise InputError(f"parameter v_tilde must be at least {lo:.3g} mm/s for this model, got "
+                             f"{vt:.3g}: the friction solve of {len(fric)} friction inputs resolves "
+                             f"no smaller one ({why}); below it the friction exceeds its level and "
+                             f"the outputs grow without bound or are NaN", column=f"{prt.name}.v_tilde")
 
 
 def check_quasi_static(model, source=None):
