@@ -750,9 +750,11 @@ def check_simulation_numbers(model):
 
     Ts in TS_RANGE; friction ``v_tilde`` > 0 and ``level`` finite >= 0; feature parameters
     (``v_tilde`` for sat/abs_sat/stribeck, ``v_s`` for stribeck/play_stribeck, ``period_mm`` for
-    sin/cos, ``source`` command/position, ``width_mm`` and source position for play/play_stribeck); the steady-state maps finite and at
-    most MAX_ABS in magnitude (the matrix entries are checked so by validate, before the
-    stability check). Raises InputError naming the parameter.
+    sin/cos, ``source`` command/position, ``width_mm`` and source position for
+    play/play_stribeck); friction ``v_tilde`` no smaller than the friction solve resolves
+    (:func:`check_friction_resolution`); the steady-state maps finite and at most MAX_ABS in
+    magnitude (the matrix entries are checked so by validate, before the stability check).
+    Raises InputError naming the parameter.
     """
     lo, hi = TS_RANGE
     if not lo <= model.Ts <= hi:
