@@ -327,9 +327,10 @@ def test_validate_names_an_fmu_of_another_model_with_the_same_variables(fmu_case
     other = model.to_dict()
     other["B"] = (np.asarray(other["B"]) * 1.001).tolist()
     other_fmu = export_fmu(DriveModel.from_dict(other), d / "other.fmu")
-    with pytest.raises(InputError, match="other.fmu: the FMU was not exported from this model: its "
-                                         "resources/model.json differs in B"):
-        validate_fmu(other_fmu, va, model=model)
+    res = validate_fmu(other_fmu, va, model=model)
+    assert not res.ok and len(res.problems) == 1
+    assert "the FMU carries another model (its resources/model.json differs from the reference in B)" \
+        in res.problems[0] and "stick-slip" not in res.problems[0]
     assert validate_fmu(fmu, va, model=model).ok          # the model's own FMU still passes
 
 
@@ -337,7 +338,8 @@ def test_validate_judges_an_fmu_against_the_reference_s_own_sensitivity():
     """An FMU that misses the 1e-9 mm target by less than the reference itself moves under a
     1e-12 mm perturbation of its commands agrees as far as the trace allows (a note, passes:
     EMPS PULSES with the rigid model, 4.6e-9 against 5.3e-9 mm, was exit 1 with a message that
-    said no implementation could agree); beyond that sensitivity it is a problem."""
+    said no implementation could agree); beyond that sensitivity it is a problem, and so it is
+    within it when the caller gave the tolerance (fdid validate --tolerance)."""
     from fdid_fmi.fmu.validate import ValidationResult, _judge_sensitive
     near = ValidationResult(fmu="f.fmu", max_abs_diff_reference_mm=4.6e-9, reference_sensitivity_mm=5.33e-9)
     _judge_sensitive(near)
@@ -347,6 +349,10 @@ def test_validate_judges_an_fmu_against_the_reference_s_own_sensitivity():
     _judge_sensitive(far)
     assert not far.ok and not far.notes and "does not compute the reference model" in far.problems[0]
     assert not ValidationResult(fmu="f.fmu", max_abs_diff_reference_mm=2e-9).ok   # no sensitivity: the target
+    strict = ValidationResult(fmu="f.fmu", max_abs_diff_reference_mm=4.6e-9, reference_sensitivity_mm=5.33e-9,
+                              sensitivity_floor=False)     # a --tolerance the user gave is strict
+    _judge_sensitive(strict)
+    assert not strict.ok and "no implementation can agree to the 1e-09 mm asked for" in strict.problems[0]
 
 
 @pytest.mark.parametrize("given", ["", ","])
