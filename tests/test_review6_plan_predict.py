@@ -99,3 +99,71 @@ def test_block_table_matches_a_mask_per_block(planned):
         assert row["contour_rms_um"] == pytest.approx(np.sqrt(np.mean(c[sel] ** 2)) * 1e3, rel=1e-12)
         assert row["x_max_err_um"] == float(np.max(np.abs(err["x"][sel]))) * 1e3
         assert row["flag"] == (b.kind in ("line", "arc") and row["contour_max_um"] > 4.0)
+
+
+# --- a block too long to sample: refused before any array is made ---------------------------
+
+def _refused(text, Ts=6e-4, **kw):
+    prog = parse_program(text, source="long.nc", start=[0, 0, 0])
+    tracemalloc.start()
+    try:
+        with pytest.raises(InputError) as ei:
+            interpolate(prog, LIMITS, Ts, **kw)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 5e6                     # refused up front (it tried 745 GiB of sample times)
+    return str(ei.value)
+
+
+def test_tiny_feed_refused_naming_line_feed_duration_and_samples():
+    msg = _refused("G21 G90 G17\nG1 X100 F0.0001\nM30\n")
+    assert msg.startswith("long.nc, column 'F', row 2: F0.0001 [mm/min] over 100 mm")
+    assert "at least 6e+07 s (1e+11 samples at Ts = 0.6 ms); at most 5e+06 samples" in msg
+    # the look-ahead corner rule takes at least as long: refused the same way
+    assert _refused("G21 G90 G17\nG1 X100 F0.0001\nM30\n", corner_angle_deg=5.0) == msg
+
+
+def test_long_dwell_rapid_inch_arc_and_g93_refused():
+    assert "column 'P', row 3: G4 P4000 makes the block last 4e+03 s (6.67e+06 samples" in \
+        _refused("G21 G90\nG1 X1 F100\nG4 P4000\n")
+    assert "row 2: F0.0001 [inch/min] over 39.8982 mm" in _refused("G20 G90\nG2 X1 Y0 I0.5 J0 F0.0001\n")
+    assert "row 2: G93 F1e-06 (block time 6e+07 s) over 10 mm" in _refused("G21 G93\nG1 X10 F0.000001\n")
+    prog = parse_program("G21\nG0 X100\n", source="r.nc", start=[0, 0, 0])
+    with pytest.raises(InputError, match=r"column '--limits', row 2: the rapid \(1e-05 mm/s along the path\)"):
+        interpolate(prog, {"x": AxisLimits(1e-5, 2000, 1e5)}, 6e-4)
+    # a feed override that slows a block past the limit names it
+    prog = parse_program("G21\nG1 X100 F10\n", source="o.nc", start=[0, 0, 0])
+    with pytest.raises(InputError, match="F10 \\[mm/min\\] over 100 mm at feed override 0.01"):
+        interpolate(prog, LIMITS, 6e-4, overrides={0: 0.01})
+
+
+def test_block_just_within_the_limit_is_not_refused():
+    from fdid_fmi.plan.interpolate import MAX_BLOCK_SAMPLES, check_block_lengths
+    Ts_ = 6e-4
+    feed = 100.0 / (0.99 * MAX_BLOCK_SAMPLES * Ts_) * 60       # mm/min: 0.99 x the limit
+    prog = parse_program(f"G21\nG1 X100 F{feed:.6f}\nG4 P{0.99 * MAX_BLOCK_SAMPLES * Ts_:.3f}\n",
+                         source="ok.nc", start=[0, 0, 0])
+    check_block_lengths(prog, LIMITS, Ts_)                     # no error
+
+
+def test_arc_peaks_and_samples_in_chunks_equal_the_whole_block(monkeypatch):
+    """The arc's fine-grid peaks and the block's samples, CHUNK at a time, are those of the
+    whole block at once (the same numbers: the interpolation is unchanged)."""
+    import fdid_fmi.plan.interpolate as I
+    from fdid_fmi.virtual.trajectories import scurve
+    prog = parse_program("G21 G90 G17\nG1 X10 F3000\nG3 X0 Y10 I-10 J0\nG2 X-5 Y5 R5 Z1\n",
+                         source="arc.nc", start=[0, 0, 0])
+    arc = prog.blocks[1]
+    prof = scurve(arc.length, 40.0, 2000.0, 1e5)
+    dt = Ts / 4
+    whole = I._axis_peaks(arc.point(prof.evaluate(np.arange(0.0, prof.duration + dt, dt))[0]), dt)
+    ref = interpolate(prog, LIMITS, Ts)
+    for chunk in (1, 5, 1000):
+        monkeypatch.setattr(I, "CHUNK", chunk)
+        for w, p in zip(whole, I._arc_axis_peaks(arc, prof, dt)):
+            assert np.array_equal(w, p), chunk
+        ip = interpolate(prog, LIMITS, Ts)
+        assert ip.spans == ref.spans
+        for a in "xyz":
+            assert np.array_equal(ip.positions[a], ref.positions[a]), chunk

@@ -167,7 +167,77 @@ def _axis_peaks(p, dt):
             np.max(np.abs(d3), axis=0) if len(d3) else z)
 
 
-def block_profile(block, limits, Ts, override=1.0):
+def _arc_axis_peaks(block, prof, dt):
+    """:func:`_axis_peaks` of the block's points at tau = 0, dt, ... (as ``np.arange(0,
+    duration + dt, dt)``), CHUNK points at a time overlapping by 3 (every 4 consecutive points,
+    hence every difference, lie in one chunk): the same peaks, temporaries bounded."""
+    n = int(math.ceil((prof.duration + dt) / dt))       # np.arange's length
+    peaks = [np.zeros(3), np.zeros(3), np.zeros(3)]
+    for i0 in range(0, max(n - 3, 1), CHUNK):
+        tau = np.arange(i0, min(n, i0 + CHUNK + 3)) * dt
+        for acc, pk in zip(peaks, _axis_peaks(block.point(prof.evaluate(tau)[0]), dt)):
+            np.maximum(acc, pk, out=acc)
+    return tuple(peaks)
+
+
+#: Most samples one block (or a dwell, the lead-in, the settling time) may take. Measured after
+#: the contour error was computed in chunks: ``fdid plan`` of one G1 block of 1e6 samples peaks
+#: at 448 MB RSS (842 MB with --report --json --csv; 160 MB at 1e5 samples), so 5e6 samples is
+#: ~2 GB (~4.5 GB with every output): within an 8 GB workstation. 5e6 samples is 50 min at
+#: Ts = 0.6 ms, 83 min at 1 ms, 10 min at 8 kHz: longer than a block of a real program takes;
+#: more is a mistyped feed (F0.0001 over 100 mm: 6e7 s, 1e11 samples, 745 GiB for the times alone).
+MAX_BLOCK_SAMPLES = 5_000_000
+
+CHUNK = 1 << 18     # samples evaluated at a time within one block (bounded temporaries)
+
+
+def _block_words(b, v, override=1.0):
+    """What sets a block's duration, for an error message: its F word (or dwell time), or the
+    axes' velocity limits when the path speed ``v`` (mm/s) is below the feed. (words, option)"""
+    if b.kind == "dwell":
+        return f"G4 P{b.block_time:g}", "P"
+    if v < b.feed * override:
+        kind = "the rapid" if b.kind == "rapid" else "the axes' velocity limits"
+        return f"{kind} ({v:.3g} mm/s along the path) over {b.length:.6g} mm", "--limits"
+    fw = f"{b.f_word:g}" if b.f_word is not None else f"{b.feed * 60:g}"
+    if b.inverse_time:
+        return f"G93 F{fw} (block time {b.block_time:.3g} s) over {b.length:.6g} mm", "F"
+    return f"F{fw} [{'inch' if b.units == 'inch' else 'mm'}/min] over {b.length:.6g} mm", "F"
+
+
+def _refuse_long(b, T, Ts, v, source, override=1.0, at_least=True):
+    """InputError when a block lasting ``T`` s takes more than MAX_BLOCK_SAMPLES samples."""
+    n = T / Ts
+    if not n > MAX_BLOCK_SAMPLES:       # NaN cannot occur: T >= 0
+        return
+    what, column = _block_words(b, v, override)
+    ov = f" at feed override {override:g}" if override != 1.0 else ""
+    raise InputError(f"{what}{ov} makes the block last {'at least ' if at_least else ''}{T:.3g} s "
+                     f"({n:.3g} samples at Ts = {Ts * 1e3:.4g} ms); at most {MAX_BLOCK_SAMPLES:.3g} "
+                     f"samples per block (the planner keeps every sample in memory)",
+                     source=source, column=column, row=b.line)
+
+
+def check_block_lengths(program, limits, Ts, overrides=None):
+    """Refuse, before any array is made, a block of more than MAX_BLOCK_SAMPLES samples.
+
+    The duration is bounded below by the length over the largest path speed the block may
+    reach: the feed (times its override; G93: the length over the block time) and
+    sqrt(sum v_max,i^2) of the axes with limits (no axis is faster than its v_max); a dwell
+    lasts its P time. Both corner rules (exact stop, look-ahead) take at least that long.
+    """
+    for b in program.blocks:
+        f = float((overrides or {}).get(b.index, 1.0))
+        if b.kind == "dwell":
+            _refuse_long(b, b.block_time, Ts, 0.0, program.source, at_least=False)
+        elif b.length > 0:
+            moved = [ax for i, ax in enumerate(AXES) if b.kind == "arc" or b.end[i] != b.start[i]]
+            v_axes = math.sqrt(sum(limits[ax].v ** 2 for ax in moved if ax in limits)) or math.inf
+            v = min(b.feed * f, v_axes)
+            _refuse_long(b, b.length / v if v > 0 else math.inf, Ts, v, program.source, f)
+
+
+def block_profile(block, limits, Ts, override=1.0, source=None):
     """The S-curve of one block and its duration rounded to whole samples.
 
     Parameters
@@ -176,6 +246,8 @@ def block_profile(block, limits, Ts, override=1.0):
     limits : dict axis -> AxisLimits (every axis the block moves)
     Ts : float, s
     override : float, feed override (1 = programmed feed)
+    source : str, optional   the program's file, for the error of a block longer than
+        MAX_BLOCK_SAMPLES samples (refused before its samples are made)
 
     Returns
     -------
@@ -184,6 +256,7 @@ def block_profile(block, limits, Ts, override=1.0):
     """
     L = block.length
     if block.kind == "dwell":
+        _refuse_long(block, block.block_time, Ts, 0.0, source, at_least=False)
         return None, int(math.ceil(block.block_time / Ts - 1e-9)), 1.0
     if L == 0:
         return None, 0, 1.0
@@ -200,12 +273,10 @@ def block_profile(block, limits, Ts, override=1.0):
             a = min(a, lim.a / u[i])
             j = min(j, lim.j / u[i])
     prof = scurve(L, v, a, j)
+    _refuse_long(block, prof.duration, Ts, v, source, override, at_least=block.kind == "arc")
     if block.kind == "arc":
         # centripetal terms: measure the axis peaks on a fine grid, scale time uniformly
-        dt = Ts / 4
-        tau = np.arange(0.0, prof.duration + dt, dt)
-        p = block.point(prof.evaluate(tau)[0])
-        vp, ap, jp = _axis_peaks(p, dt)
+        vp, ap, jp = _arc_axis_peaks(block, prof, Ts / 4)
         lam = 1.0
         for i, ax in enumerate(AXES):
             lim = limits.get(ax)
@@ -220,6 +291,7 @@ def block_profile(block, limits, Ts, override=1.0):
         if lam < 1.0:
             lam *= 0.995
             prof = scurve(L, lam * v, lam ** 2 * a, lam ** 3 * j)
+            _refuse_long(block, prof.duration, Ts, lam * v, source, override, at_least=False)
     n = max(1, int(math.ceil(prof.duration / Ts - 1e-9)))
     c = prof.duration / (n * Ts)
     return prof, n, c
@@ -256,6 +328,11 @@ def interpolate(program, limits, Ts, overrides=None, lead_in=0.05, settle=0.5, p
         f = float((overrides or {}).get(b.index, 1.0))
         if not f > 0:
             raise InputError(f"feed override of line {b.line} must be > 0, got {f!r}", column="override")
+    for name, val in (("lead_in", lead_in), ("settle", settle)):
+        if val / Ts > MAX_BLOCK_SAMPLES:
+            raise InputError(f"{name} of {val:g} s is {val / Ts:.3g} samples at Ts = {Ts * 1e3:.4g} ms; "
+                             f"at most {MAX_BLOCK_SAMPLES:.3g}", column=name)
+    check_block_lengths(program, limits, Ts, overrides)     # before any array is made
     if corner_angle_deg is not None:
         from .lookahead import interpolate_lookahead
         return interpolate_lookahead(program, limits, Ts, corner_angle_deg, overrides, lead_in, settle)
@@ -272,14 +349,17 @@ def interpolate(program, limits, Ts, overrides=None, lead_in=0.05, settle=0.5, p
         f = float(overrides.get(b.index, 1.0))
         if not f > 0:
             raise InputError(f"feed override of line {b.line} must be > 0, got {f!r}", column="override")
-        prof, n, c = block_profile(b, limits, Ts, f)
+        prof, n, c = block_profile(b, limits, Ts, f, source=program.source)
         if prof is None:
             pieces.append(np.repeat(b.end[None, :], n, axis=0))
             spans.append((k, k + n))
             feeds.append(0.0)
         else:
-            tau = np.arange(1, n + 1) * Ts * c
-            s = prof.evaluate(tau)[0]
+            # s at tau = (1..n) Ts c, CHUNK samples at a time (evaluate's temporaries bounded)
+            s = np.empty(n)
+            for i0 in range(0, n, CHUNK):
+                i1 = min(n, i0 + CHUNK)
+                s[i0:i1] = prof.evaluate(np.arange(i0 + 1, i1 + 1) * Ts * c)[0]
             s[-1] = b.length
             pieces.append(b.point(s))
             spans.append((k, k + n))
