@@ -167,3 +167,54 @@ def test_arc_peaks_and_samples_in_chunks_equal_the_whole_block(monkeypatch):
         assert ip.spans == ref.spans
         for a in "xyz":
             assert np.array_equal(ip.positions[a], ref.positions[a]), chunk
+
+
+# --- --commands: setpoints of another program, or at another sample time -----------------------
+
+def _setpoints(text, Ts_=1e-3, dy=0.0, source="s.csv"):
+    from fdid_fmi.trace import Trace
+    ip = interpolate(parse_program(text, source="a.nc", start=[0, 0, 0]), LIMITS, Ts_)
+    return Trace.from_arrays(ip.t + 2.0, {"x": {"cmd": ip.positions["x"]}, "y": {"cmd": ip.positions["y"] + dy}},
+                             source=source)
+
+
+SQUARE = "G21 G90 G17\nG1 X10 F3000\nG1 Y10\nG1 X0\nG1 Y0\n"
+
+
+def test_setpoints_of_another_program_are_refused():
+    """Before: each sample went to the nearest block however far (pocket_corner.nc with
+    virtual_circle.csv: exit 0 and figures of the wrong program)."""
+    from fdid_fmi.plan.interpolate import commands_from_trace
+    circle = _setpoints("G21 G90 G17\nG0 X5 Y-8\nG2 X5 Y-8 I0 J8 F3000\n")
+    with pytest.raises(InputError) as ei:
+        commands_from_trace(parse_program(SQUARE, source="square.nc", start=[0, 0, 0]), circle, ["x", "y"])
+    msg = str(ei.value)
+    assert msg.startswith("s.csv, column 'x_cmd/y_cmd': the setpoint at t = 2.0")   # the file's own time
+    assert "mm from the path of square.nc (nearest: line " in msg and "within 0.1 mm" in msg
+    dist = float(msg.split(" mm) is ")[1].split(" mm")[0])
+    assert dist > 0.1                   # the first setpoint that leaves the square's path
+
+
+def test_setpoints_off_the_path_by_more_than_the_tolerance_are_refused():
+    """A controller's blending tolerance (0.1 mm, TRACE_PATH_TOL) is accepted; more is not."""
+    from fdid_fmi.plan.interpolate import TRACE_PATH_TOL, commands_from_trace
+    prog = parse_program("G21 G90 G17\nG1 X10 F3000\nG1 X20 Y5\n", source="line.nc", start=[0, 0, 0])
+    ic = commands_from_trace(prog, _setpoints("G21 G90 G17\nG1 X10 F3000\nG1 X20 Y5\n",
+                                              dy=0.09), ["x", "y"])
+    assert ic.block_of_sample.max() == 1
+    with pytest.raises(InputError, match=r"t = 2 s \(x 0, y 0.13 mm\) is 0.13 mm from the path of line.nc "
+                                         r"\(nearest: line 2\); setpoints must lie within 0.1 mm"):
+        commands_from_trace(prog, _setpoints("G21 G90 G17\nG1 X10 F3000\nG1 X20 Y5\n", dy=0.13), ["x", "y"])
+    assert TRACE_PATH_TOL == 0.1
+
+
+def test_setpoints_at_another_sample_time_than_the_model_are_refused():
+    """Before: a 0.6 ms trace with a 1 ms model was accepted (simulate, validate and diagnose
+    refuse it)."""
+    from fdid_fmi.plan.interpolate import commands_from_trace
+    prog = parse_program(SQUARE, source="square.nc", start=[0, 0, 0])
+    tr = _setpoints(SQUARE, Ts_=6e-4)
+    with pytest.raises(InputError, match=r"^s.csv, column 'Ts': the setpoints are sampled at 0.0006 s but "
+                                         r"the model at 0.001 s; resample the trace$"):
+        commands_from_trace(prog, tr, ["x", "y"], Ts=1e-3)
+    assert commands_from_trace(prog, tr, ["x", "y"], Ts=6e-4).Ts == tr.Ts

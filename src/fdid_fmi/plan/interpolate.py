@@ -396,15 +396,52 @@ def interpolate(program, limits, Ts, overrides=None, lead_in=0.05, settle=0.5, p
                                "settle_s": n_settle * Ts})
 
 
-def commands_from_trace(program, trace, axes):
+#: How far a controller's setpoint may lie from the programmed path (mm), on top of the program's
+#: own arc end-point tolerance (:func:`~fdid_fmi.plan.ncprogram.radius_tolerance` of its largest
+#: arc, by which a controller's arc may differ from this reader's): a controller that blends
+#: corners leaves the path by its path tolerance, typically 0.01 .. 0.1 mm (Siemens G642 /
+#: CYCLE832, Heidenhain cycle 32); exact-stop setpoints lie on the path to rounding (< 1 um for
+#: examples/virtual_circle.csv on circle.nc). A trace of another program lies mm away (20 mm
+#: for virtual_circle.csv on pocket_corner.nc).
+TRACE_PATH_TOL = 0.1
+
+
+def _polyline_distance(V, i, p):
+    """Distance (mm) from point ``p`` to the polyline ``V`` on the segments next to vertex i."""
+    best = float(np.linalg.norm(V[i] - p))
+    for a, b in ((i - 1, i), (i, i + 1)):
+        if 0 <= a and b < len(V):
+            ab = V[b] - V[a]
+            L2 = float(ab @ ab)
+            t = min(1.0, max(0.0, float((p - V[a]) @ ab) / L2)) if L2 > 0 else 0.0
+            best = min(best, float(np.linalg.norm(V[a] + t * ab - p)))
+    return best
+
+
+def commands_from_trace(program, trace, axes, Ts=None):
     """Use a controller's own interpolated setpoints (the ``cmd`` channels of a trace) instead
     of :func:`interpolate`; samples are attributed to blocks by the nearest point of the
     programmed path (monotone along the program).
+
+    Parameters
+    ----------
+    program : Program
+    trace : Trace   its ``cmd`` channels of ``axes``
+    axes : list[str]   the twin's axes
+    Ts : float, optional   the twin's sample time, s: a trace sampled otherwise is refused (as
+        :func:`fdid_fmi.simulate.simulate` refuses it), not resampled
+
+    Setpoints farther than TRACE_PATH_TOL + the program's arc end-point tolerance from the
+    programmed path (in ``axes``) are refused: a trace of another program, another ``--start``,
+    or motion outside the program (cut it with ``--range``).
 
     Returns
     -------
     Interpolation (cycle_time: from the first to the last moving sample)
     """
+    if Ts is not None and not abs(trace.Ts - Ts) <= 1e-3 * Ts:     # NaN fails too
+        raise InputError(f"the setpoints are sampled at {trace.Ts:g} s but the model at {Ts:g} s; "
+                         f"resample the trace", source=trace.source, column="Ts")
     Ts = trace.Ts
     P = np.zeros((trace.n, 3))
     for i, a in enumerate(AXES):
@@ -432,6 +469,9 @@ def commands_from_trace(program, trace, axes):
                          "be attributed to its blocks", source=program.source)
     V, T, S, TG = np.vstack(verts), np.concatenate(tags), np.concatenate(sv), np.vstack(tans)
     dims = [i for i, a in enumerate(AXES) if a in axes]
+    from .ncprogram import radius_tolerance
+    tol = TRACE_PATH_TOL + max([radius_tolerance(max(b.r0, b.r1)) for b in program.blocks if b.kind == "arc"],
+                               default=0.0)
     owner = np.empty(trace.n, int)
     path_s = np.empty(trace.n)
     motion = np.vstack([np.diff(P, axis=0), np.zeros((1, 3))])
@@ -443,6 +483,19 @@ def commands_from_trace(program, trace, axes):
         hi = min(len(V), j + win)
         d = np.sum((V[j:hi][:, dims] - P[k, dims]) ** 2, axis=1)
         dmin = float(d.min())
+        if not dmin <= tol * tol:     # the nearest vertex; the path itself may be nearer
+            i = j + int(np.argmin(d))
+            dist = _polyline_distance(V[:, dims], i, P[k, dims])
+            if not dist <= tol:
+                chans = [trace.roles[AXES[c]]["cmd"] for c in dims]
+                at = ", ".join(f"{AXES[c]} {P[k, c]:.6g}" for c in dims)
+                raise InputError(
+                    f"the setpoint at t = {trace.t[k]:.6g} s ({at} mm) is {dist:.4g} mm from the path "
+                    f"of {program.source or 'the program'} (nearest: line {program.blocks[T[i]].line}); setpoints must "
+                    f"lie within {tol:.3g} mm of it (a controller's corner blending, up to "
+                    f"{TRACE_PATH_TOL:g} mm, and the program's arc end-point tolerance): a trace of "
+                    f"another program or another --start? Cut motion outside the program with --range",
+                    source=trace.source, column="/".join(chans))
         # a corner is in two blocks: of the nearest vertices, take the one the motion follows
         cand = np.flatnonzero(d <= (math.sqrt(dmin) + 2e-3) ** 2)
         score = TG[j + cand][:, dims] @ motion[k, dims]
