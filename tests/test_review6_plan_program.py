@@ -175,3 +175,19 @@ def test_program_ends_at_the_closing_percent(tmp_path, model_xy, capsys):
     assert code == 0, err
     assert "passed over: row 3: M8, row 5: not read: after the closing '%' of row 4" in out
     assert "line 3" not in out
+
+
+def test_setpoints_at_another_sample_time_are_resampled_with_a_note(tmp_path, capsys):
+    """fdid plan --commands resampled a 0.6 ms trace to a 1 ms twin without a word (a review,
+    session 34); it now says so (simulate, validate and diagnose refuse such a trace, but a
+    controller's interpolation cycle need not be the model's)."""
+    import fmu_support as fs
+    from pathlib import Path
+    ex = Path(__file__).resolve().parents[1] / "examples"
+    m = fs.siso_model()
+    assert m.Ts == 1e-3
+    m.save(tmp_path / "m.json")
+    assert main(["plan", str(ex / "circle.nc"), "--model", str(tmp_path / "m.json"),
+                 "--commands", str(ex / "virtual_circle.csv")]) == 0
+    out = capsys.readouterr().out
+    assert "recorded at Ts = 0.0006 s, are resampled to the model's Ts = 0.001 s" in out

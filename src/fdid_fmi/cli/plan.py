@@ -164,9 +164,13 @@ def run(args):
                          source=args.program)
     if args.commands:
         tr = _ranged_trace(args.commands, args)
-        if abs(tr.Ts - Ts) > 1e-3 * Ts:
+        recorded_Ts = tr.Ts
+        if abs(recorded_Ts - Ts) > 1e-3 * Ts:   # the controller's cycle need not be the model's
             tr = tr.resample(Ts)
-        ip = commands_from_trace(prog, tr, axes)
+        ip = commands_from_trace(prog, tr, axes, Ts=Ts)
+        if tr.Ts != recorded_Ts:                # said, not silent (a review, session 34)
+            print(f"note: the setpoints of {args.commands}, recorded at Ts = {recorded_Ts:g} s, are "
+                  f"resampled to the model's Ts = {Ts:g} s")
         lim = None
     else:
         lim = _limits(args, given_limits, prog.axes_used)
