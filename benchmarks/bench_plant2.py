@@ -5,7 +5,7 @@ fixed-step RK4 with an exact bristle update, jerk-filter paths) shares no code w
 ``fdid_fmi.virtual``. On every scenario of ``plant2.scenarios``:
 
 1. identification with the public API -- every candidate of the automatic structure choice
-   (``choose_structure.fit_structures``; the one ``choose`` picks is the default of ``fdid
+   (``choose_structure.fit_structures``; the one ``keep`` keeps is the default of ``fdid
    identify``), Full LS and quasi-static -- each simulated (``fdid_fmi.simulate.simulate``) on the
    three validation traces (circle, diamond, reversals): free-run RMS of the predicted minus
    measured tracking error, its ratio to the better of Full LS / quasi-static, and the default's
@@ -54,8 +54,8 @@ from fdid_fmi.diagnose.base import Context  # noqa: E402
 from fdid_fmi.diagnose.limits import NoteKind  # noqa: E402
 from fdid_fmi.diagnose.residuals import residuals  # noqa: E402
 from fdid_fmi.identify import (identify_full_ls, identify_quasi_static, identify_siso)  # noqa: E402
-from fdid_fmi.identify.choose_structure import (StructureChoice, choose, fit_structures, free_run_rms,  # noqa: E402
-                                                identify_auto, scored_outputs)
+from fdid_fmi.identify.choose_structure import (StructureChoice, fit_options, fit_structures, free_run_rms,  # noqa: E402
+                                                identify_auto, keep, scored_outputs)
 from fdid_fmi.metrics import rms  # noqa: E402
 from fdid_fmi.simulate import simulate  # noqa: E402
 from plant2 import scenarios as p2  # noqa: E402
@@ -129,9 +129,10 @@ def identification(name):
         # the default of `fdid identify` (identify_auto): every candidate structure is fitted
         # (fit_structures) and the choice rule picks one; the exhaustive search over the same
         # candidates is their validation RMS
-        t, (results, probes) = timed(lambda: fit_structures(tr, ax, seed=0, workers=2))
+        opts = fit_options([tr], ax, None, 0, None, "de", "backward", 1)
+        t, (chosen, results, probes) = timed(lambda: keep(*fit_structures(tr, ax, seed=0, workers=2), [tr], ax,
+                                                          opts, workers=2))
         outputs = scored_outputs([tr], ax)
-        chosen = choose([r for r, _ in results])
         res["structure_choice_wall_s"] = t
         print(f"  structure choice: {t:.0f} s, chosen {chosen.label} {chosen.same_sample}", flush=True)
         for r, m in results + probes:

@@ -117,7 +117,7 @@ def test_the_kept_structure_is_refitted_in_its_other_forms():
     from fdid_fmi.io import read_trace
     tr = read_trace(Path(__file__).resolve().parents[1] / "examples" / "virtual_xy_moves.csv")
     ranges = training_ranges(tr.select([(0.0, 6.0)]), ["x"])
-    opts = cs._fit_options(ranges, "x", None, 0, None, "de", "backward", 1)
+    opts = cs.fit_options(ranges, "x", None, 0, None, "de", "backward", 1)
     fits = {f: cs.fit_candidate((cs.candidate("rigid"), f, ranges, "x", opts)) for f in CHOSEN_FROM}
     score = {f: fits[f][0].free_run_rms_mm for f in CHOSEN_FROM}
     worst, best = max(score, key=score.get), min(score, key=score.get)

@@ -269,7 +269,7 @@ def candidate(label):
     return with_play(cand, float(play[:-2]) * 1e-3) if play else cand
 
 
-def _fit_options(traces, axis, v_tilde, seed, maxiter, method, velocity, ma_order):
+def fit_options(traces, axis, v_tilde, seed, maxiter, method, velocity, ma_order):
     return dict(v_tilde=v_tilde, seed=seed, maxiter=maxiter, method=method, velocity=velocity,
                 ma_order=ma_order, outputs=scored_outputs(traces, axis))
 
@@ -294,6 +294,21 @@ def other_forms(best, traces, axis, options, workers=1, parsimony=PARSIMONY):
     return (min(better, key=lambda rm: rm[0].free_run_rms_mm) if better else None), fits
 
 
+def keep(results, probes, traces, axis, options, workers=1, parsimony=PARSIMONY, own_form=True):
+    """Steps 4 and 5 of the module docstring on the fits of :func:`fit_structures`.
+
+    Returns (best, results, probes): the kept CandidateScore, and the lists with step 5's fits
+    added (the one taken to ``results``, the others to ``probes``). ``own_form``: False when the
+    user pinned the same-sample form (no step 5).
+    """
+    best = choose([r for r, _ in results], parsimony)
+    if not own_form:
+        return best, results, probes
+    taken, fits = other_forms(best, traces, axis, options, workers, parsimony)
+    return (taken[0] if taken else best), results + ([taken] if taken else []), \
+        probes + [rm for rm in fits if rm is not taken]
+
+
 def fit_structures(traces, axis="x", same_sample=None, v_tilde=None, method="de", seed=0, maxiter=None,
                    velocity="backward", ma_order=1, workers=1):
     """Steps 1 to 3 of the module docstring: every candidate identified and scored
@@ -306,7 +321,7 @@ def fit_structures(traces, axis="x", same_sample=None, v_tilde=None, method="de"
     with the other predictions and the r2c2 play fits at the other widths.
     """
     traces = [traces] if not isinstance(traces, (list, tuple)) else list(traces)
-    opts = _fit_options(traces, axis, v_tilde, seed, maxiter, method, velocity, ma_order)
+    opts = fit_options(traces, axis, v_tilde, seed, maxiter, method, velocity, ma_order)
     forms = [same_sample] if same_sample else list(CHOSEN_FROM)
     pool = process_pool(workers) if workers > 1 else None
 
@@ -366,13 +381,9 @@ def identify_auto(traces, axis="x", same_sample=None, v_tilde=None, method="de",
     workers = worker_count(workers)
     results, probes = fit_structures(traces, axis, same_sample, v_tilde, method, seed, maxiter, velocity,
                                      ma_order, workers)
-    best = choose([r for r, _ in results], parsimony)
-    if same_sample is None:         # step 5: the kept structure's own form
-        opts = _fit_options(traces, axis, v_tilde, seed, maxiter, method, velocity, ma_order)
-        taken, fits = other_forms(best, traces, axis, opts, workers, parsimony)
-        results = results + [taken] if taken else results
-        probes = probes + [rm for rm in fits if rm is not taken]
-        best = taken[0] if taken else best
+    opts = fit_options(traces, axis, v_tilde, seed, maxiter, method, velocity, ma_order)
+    best, results, probes = keep(results, probes, traces, axis, opts, workers, parsimony,
+                                 own_form=same_sample is None)
     best.chosen = True
     model = next(m for r, m in results if r is best)
     model.method = "pole-search"
