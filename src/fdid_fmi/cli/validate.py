@@ -21,9 +21,8 @@ def register(sub):
     p.add_argument("--model", default=None,
                    help="reference model JSON (default: resources/model.json inside the FMU)")
     p.add_argument("--json", default=None, metavar="OUT.json", help="write the results as JSON")
-    p.add_argument("--tolerance", type=finite_float("--tolerance", positive=True), default=None,
-                   help="largest accepted |FMU - reference| in mm (default 1e-9, or how far the reference "
-                        "itself moves when its commands are perturbed by 1e-12 mm, where that is larger)")
+    p.add_argument("--tolerance", type=finite_float("--tolerance", positive=True), default=1e-9,
+                   help="largest accepted |FMU - reference| in mm (default 1e-9)")
     add_trace_arguments(p)
     p.set_defaults(func=run)
 
