@@ -127,3 +127,7 @@ def test_the_kept_structure_is_refitted_in_its_other_forms():
     assert taken[0].free_run_rms_mm == score[best]
     assert cs.other_forms(fits[best][0], ranges, "x", opts)[0] is None
     assert cs.other_forms(fits[worst][0], ranges, "x", opts, parsimony=0.99)[0] is None   # by the margin only
+    # fits at hand (step 1's r2c1 forms when r2c1 is kept) are taken as they are, not fitted again
+    at_hand = [fits[f] for f in CHOSEN_FROM if f != worst]
+    taken, again = cs.other_forms(fits[worst][0], ranges, "x", opts, fitted=at_hand)
+    assert all(any(a is b for b in at_hand) for a in again) and taken is fits[best]

@@ -282,14 +282,17 @@ def _run(jobs, workers):
         return list(pool.map(fit_candidate, jobs))
 
 
-def other_forms(best, traces, axis, options, workers=1, parsimony=PARSIMONY):
+def other_forms(best, traces, axis, options, workers=1, parsimony=PARSIMONY, fitted=()):
     """Step 5 of the module docstring: the chosen structure fitted in the other same-sample forms.
 
+    ``fitted``: (CandidateScore, DriveModel) already at hand (step 1's r2c1 fits), not fitted again.
     Returns (taken, fits): ``taken`` the (CandidateScore, DriveModel) whose free run is lower
     than ``best``'s by ``parsimony`` (the lowest; None when none is), ``fits`` all of them.
     """
-    cand = candidate(best.label)
-    fits = _run([(cand, f, traces, axis, options) for f in CHOSEN_FROM if f != best.same_sample], workers)
+    forms = [f for f in CHOSEN_FROM if f != best.same_sample]
+    have = [rm for rm in fitted if rm[0].label == best.label and rm[0].same_sample in forms]
+    todo = [f for f in forms if f not in {r.same_sample for r, _ in have}]
+    fits = have + _run([(candidate(best.label), f, traces, axis, options) for f in todo], workers)
     better = [rm for rm in fits if rm[0].free_run_rms_mm <= (1 - parsimony) * best.free_run_rms_mm]
     return (min(better, key=lambda rm: rm[0].free_run_rms_mm) if better else None), fits
 
@@ -304,9 +307,10 @@ def keep(results, probes, traces, axis, options, workers=1, parsimony=PARSIMONY,
     best = choose([r for r, _ in results], parsimony)
     if not own_form:
         return best, results, probes
-    taken, fits = other_forms(best, traces, axis, options, workers, parsimony)
-    return (taken[0] if taken else best), results + ([taken] if taken else []), \
-        probes + [rm for rm in fits if rm is not taken]
+    taken, fits = other_forms(best, traces, axis, options, workers, parsimony, fitted=probes)
+    new = [rm for rm in fits if rm is not taken and not any(rm is q for q in probes)]
+    probes = [rm for rm in probes if rm is not taken] + new
+    return (taken[0] if taken else best), results + ([taken] if taken else []), probes
 
 
 def fit_structures(traces, axis="x", same_sample=None, v_tilde=None, method="de", seed=0, maxiter=None,
