@@ -270,6 +270,7 @@ def candidate(label):
 
 
 def fit_options(traces, axis, v_tilde, seed, maxiter, method, velocity, ma_order):
+    """The options every candidate's fit shares (``fit_candidate``'s ``options``)."""
     return dict(v_tilde=v_tilde, seed=seed, maxiter=maxiter, method=method, velocity=velocity,
                 ma_order=ma_order, outputs=scored_outputs(traces, axis))
 
@@ -321,7 +322,8 @@ def fit_structures(traces, axis="x", same_sample=None, v_tilde=None, method="de"
     Returns
     -------
     (results, probes): lists of (CandidateScore, DriveModel or None); ``results`` share the
-    chosen same-sample prediction and are the choice's candidates, ``probes`` are the r2c1 fits
+    same-sample prediction chosen on r2c1 and are the choice's candidates (:func:`keep` may add
+    the kept structure in another form), ``probes`` are the r2c1 fits
     with the other predictions and the r2c2 play fits at the other widths.
     """
     traces = [traces] if not isinstance(traces, (list, tuple)) else list(traces)
