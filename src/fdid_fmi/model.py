@@ -159,6 +159,14 @@ class DriveModel:
     def output_index(self, kind, axis=None, name=None):
         return _find(self.outputs, kind, axis, name)
 
+    def friction_velocity_source(self, i):
+        """``(output index, differenced)`` of the velocity friction input ``i`` sees: the axis's
+        velocity output, else its position output differenced over one sample (the step's rule,
+        fmu_templates/fdid_core.c; the FMU layout and the friction-resolution check read it here)."""
+        axis = self.inputs[i].axis
+        vo = self.output_index("velocity", axis)
+        return (vo, False) if vo is not None else (self.output_index("position", axis), True)
+
     def position_side(self, axis):
         """``"motor"`` or ``"tool"``: which side the axis's position/error outputs describe (a
         model fitted on tool-side signals only predicts the tool side)."""
@@ -819,9 +827,8 @@ def check_friction_resolution(model):
         return
     for i in fric:
         prt = model.inputs[i]
-        vo = model.output_index("velocity", prt.axis)
-        vo, scale = (vo, 1.0) if vo is not None else (model.output_index("position", prt.axis), model.Ts)
-        beta = float(np.sum(np.abs(model.D[vo, fric]))) / scale       # mm/s per unit friction
+        vo, differenced = model.friction_velocity_source(i)
+        beta = float(np.sum(np.abs(model.D[vo, fric]))) / (model.Ts if differenced else 1.0)  # mm/s per unit
         level, vt = float(prt.params.get("level", 1.0)), float(prt.params["v_tilde"])
         lo = level * max(beta / FRICTION_RATIO_MAX, 1.0 / MAX_ABS)
         if vt < lo:

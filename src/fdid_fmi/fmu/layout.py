@@ -147,7 +147,6 @@ def build_layout(model):
     check_exportable(model)
     m = model
     axes = list(m.axes)
-    aidx = {a: i for i, a in enumerate(axes)}
     ins, outs = m.inputs, m.outputs
     cmd = [m.input_index("command", a) for a in axes]
     pos = [m.output_index("position", a) for a in axes]
@@ -155,13 +154,8 @@ def build_layout(model):
     vel = [_or(m.output_index("velocity", a)) for a in axes]
     tool = [_or(m.output_index("tool_position", a)) for a in axes]
     fric = [i for i, p in enumerate(ins) if p.kind == "friction"]
-    fvo, fvd = [], []
-    for i in fric:
-        a = aidx[ins[i].axis]
-        if vel[a] >= 0:
-            fvo.append(vel[a]); fvd.append(0)
-        else:
-            fvo.append(pos[a]); fvd.append(1)
+    sources = [m.friction_velocity_source(i) for i in fric]
+    fvo, fvd = [o for o, _ in sources], [int(d) for _, d in sources]
     level0, vt0 = [], []
     for a in axes:
         ps = [ins[i] for i in fric if ins[i].axis == a]
