@@ -205,9 +205,9 @@ def run(args):
     if args.optimize:
         from ..plan.optimize import optimize_feeds
         from ..plan.ncprogram import write_program
-        fpl = optimize_feeds(prog, lim, Ts, args.tol, margin=0.02 if args.margin is None else args.margin,
-                             progress=True, before=pr,
-                             corner_angle_deg=args.corner_angle, **twin)
+        given = {} if args.margin is None else {"margin": args.margin}    # else optimize_feeds' default
+        fpl = optimize_feeds(prog, lim, Ts, args.tol, progress=True, before=pr,
+                             corner_angle_deg=args.corner_angle, **given, **twin)
         print(f"\nfeed optimisation (tol {args.tol * 1e3:.3g} µm): cycle time {fpl.before.interp.cycle_time:.3f} s "
               f"(programmed) -> {fpl.after.interp.cycle_time:.3f} s (per-block feeds, contour MAX "
               f"{fpl.after.summary['contour_max_um']:.2f} µm); uniform override "
