@@ -70,6 +70,14 @@ class SimResult:
     output_names: list
 
 
+def check_sample_time(ts, model_Ts, what="commands", source=None):
+    """InputError (column 'Ts') when commands sampled at ``ts`` s do not fit a model of
+    ``model_Ts`` s (0.1 % apart at most; NaN fails too): they must be resampled first."""
+    if not abs(ts - model_Ts) <= 1e-3 * model_Ts:
+        raise InputError(f"{what} are sampled at {ts:g} s but the model at {model_Ts:g} s; "
+                         f"resample the trace", source=source, column="Ts")
+
+
 def run_up(cmds, Ts, max_seconds=2.0):
     """Samples of command to prepend so that a record that starts accelerating starts at rest.
 
@@ -157,9 +165,7 @@ def simulate(model, trace_or_commands, Ts=None, start_velocity=None, params=None
                              column="commands")
         from .identify.quasi_static import predict_quasi_static
         return predict_quasi_static(model, cmds, t)
-    if not abs(ts - model.Ts) <= 1e-3 * model.Ts:       # NaN fails too
-        raise InputError(f"commands are sampled at {ts:g} s but the model at {model.Ts:g} s; "
-                         f"resample the trace", column="Ts")
+    check_sample_time(ts, model.Ts)
     unknown = sorted(set(start_velocity or {}) - set(cmds))
     if unknown:
         raise InputError(f"start_velocity names axes {unknown}; the model's axes are {sorted(cmds)}",

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from ..simulate import check_sample_time
 from ..virtual.trajectories import scurve
 
 AXES = ("x", "y", "z")
@@ -439,9 +440,8 @@ def commands_from_trace(program, trace, axes, Ts=None):
     -------
     Interpolation (cycle_time: from the first to the last moving sample)
     """
-    if Ts is not None and not abs(trace.Ts - Ts) <= 1e-3 * Ts:     # NaN fails too
-        raise InputError(f"the setpoints are sampled at {trace.Ts:g} s but the model at {Ts:g} s; "
-                         f"resample the trace", source=trace.source, column="Ts")
+    if Ts is not None:
+        check_sample_time(trace.Ts, Ts, "the setpoints", source=trace.source)
     Ts = trace.Ts
     P = np.zeros((trace.n, 3))
     for i, a in enumerate(AXES):
