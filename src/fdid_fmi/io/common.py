@@ -36,17 +36,23 @@ _BOMS = ((codecs.BOM_UTF32_LE, "utf-32"), (codecs.BOM_UTF32_BE, "utf-32"),
 
 
 def read_text_file(path) -> str:
-    """Text of a user's file. Read only.
+    """Text of a user's file (:func:`decode_text_file`'s text). Read only."""
+    return decode_text_file(path)[0]
+
+
+def decode_text_file(path):
+    """``(text, codec)`` of a user's file. Read only.
 
     UTF-32 / UTF-16 with a byte-order mark, else UTF-8 (with or without BOM), else Latin-1
     (old controller exports). A file with NUL bytes and no BOM (UTF-16 without BOM, or a
-    binary file) is refused with one line rather than read as garbage."""
+    binary file) is refused with one line rather than read as garbage. ``codec``: the one that
+    decoded it (``utf-8-sig`` or ``latin-1`` without a BOM)."""
     p = check_file(path)
     raw = p.read_bytes()
     for bom, enc in _BOMS:
         if raw.startswith(bom):
             try:
-                return raw.decode(enc)
+                return raw.decode(enc), enc
             except UnicodeDecodeError as exc:
                 raise InputError(f"starts with a {enc.upper()} byte-order mark but is not valid "
                                  f"{enc.upper()} text (byte {exc.start})", source=str(p)) from None
@@ -57,9 +63,9 @@ def read_text_file(path) -> str:
                 if zeros > 0.3 * len(raw) / 2 else " is it a binary file?")
         raise InputError(f"is not a text file: NUL byte at offset {k};{hint}", source=str(p))
     try:
-        return raw.decode("utf-8-sig")
+        return raw.decode("utf-8-sig"), "utf-8-sig"
     except UnicodeDecodeError:     # a UTF-8 BOM on Latin-1 text is still a BOM, not "ï»¿"
-        return raw.removeprefix(codecs.BOM_UTF8).decode("latin-1")
+        return raw.removeprefix(codecs.BOM_UTF8).decode("latin-1"), "latin-1"
 
 
 def file_sha256(path) -> str:

@@ -53,7 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..io.common import read_text_file, text_lines
+from ..io.common import decode_text_file, text_lines
 
 INCH = 25.4
 _PLANES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}   # (first, second, normal) axis index
@@ -202,17 +202,9 @@ def read_program(path, start=(0.0, 0.0, 0.0)):
     which, so that :func:`write_program`'s output keeps the comments' bytes.
     """
     path = Path(path)
-    text = read_text_file(path)
-    encoding = "utf-8"
-    if not text.isascii():
-        raw = path.read_bytes()
-        if not raw.startswith((b"\xff\xfe", b"\xfe\xff", b"\x00\x00\xfe\xff")):
-            try:
-                raw.decode("utf-8-sig")
-            except UnicodeDecodeError:
-                encoding = "latin-1"
+    text, codec = decode_text_file(path)
     prog = parse_program(text, source=str(path), start=start)
-    prog.encoding = encoding
+    prog.encoding = "latin-1" if codec == "latin-1" else "utf-8"    # Program.encoding's two values
     return prog
 
 
