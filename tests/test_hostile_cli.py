@@ -14,9 +14,9 @@ import time
 import numpy as np
 import pytest
 
-from fdid_fmi.cli import main
 from fdid_fmi.errors import InputError
 from fdid_fmi.outputs import atomic_path, atomic_write, check_output, remove_orphan_temp_files
+from cli_support import run_cli as run
 
 TS = 1e-3
 FDID = [sys.executable, "-m", "fdid_fmi.cli"]
@@ -45,16 +45,6 @@ def trace_csv(path, n=2000, scale=1.0, encoding="utf-8"):
     rows = ["t_s,x_cmd_mm,x_mm"] + [f"{a:.6g},{float(b * scale)!r},{float(c * scale)!r}" for a, b, c in zip(t, cmd, act)]
     path.write_bytes(("\n".join(rows) + "\n").encode(encoding))
     return path
-
-
-def run(capsys, *args):
-    """``fdid ARGS`` in-process: (exit code, stdout, stderr)."""
-    try:
-        code = main([str(a) for a in args])
-    except SystemExit as exc:            # argparse errors
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def assert_one_line(code, err, *words, rc=2):

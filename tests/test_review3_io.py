@@ -10,30 +10,18 @@ import numpy as np
 import pytest
 from scipy.io import savemat
 
-from fdid_fmi.cli import main
 from fdid_fmi.errors import InputError
 from fdid_fmi.io import read_trace
 from fdid_fmi.io.text import read_text
+from cli_support import one_line, run_cli
 
 N = 200            # samples of the small files (the ms check starts at 16)
 
 
 def run(capsys, *args):
     """``fdid ARGS`` in-process: (exit code, stderr)."""
-    try:
-        code = main([str(a) for a in args])
-    except SystemExit as exc:            # argparse errors
-        code = exc.code
-    return code, capsys.readouterr().err
-
-
-def one_line(code, err, *words):
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert code == 2, (code, err)
-    assert len(lines) == 1 and "Traceback" not in err, err
-    for w in words:
-        assert w in lines[0], (w, lines[0])
-    return lines[0]
+    code, _, err = run_cli(capsys, *args)
+    return code, err
 
 
 def _signals(n=N, dt=1e-3):

@@ -13,9 +13,16 @@ from fdid_fmi.cli import main
 from fdid_fmi.errors import InputError
 from fdid_fmi.model import DriveModel, load_model
 from fdid_fmi.simulate import simulate
+from cli_support import one_line, run_cli
 
 TS = 1e-3
 D_FRIC = -1e-4      # same-sample response of a position to its friction input (as identified)
+
+
+def run(capsys, *args):
+    """``fdid ARGS`` in-process: (exit code, stderr)."""
+    code, _, err = run_cli(capsys, *args)
+    return code, err
 
 
 def two_axis(v_tilde=1.0, level=1.0):
@@ -48,25 +55,6 @@ def trace_csv(path, n=3000):
         f"{a:.6g},{b!r},{b!r},{c!r},{c!r}" for a, b, c in zip(t, x.tolist(), y.tolist())]
     path.write_text("\n".join(rows) + "\n")
     return path
-
-
-def run(capsys, *args):
-    """``fdid ARGS`` in-process: (exit code, stderr)."""
-    try:
-        code = main([str(a) for a in args])
-    except SystemExit as exc:            # argparse errors
-        code = exc.code
-    return code, capsys.readouterr().err
-
-
-def one_line(code, err, *words):
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert code == 2, (code, err)
-    assert len(lines) == 1, err
-    assert "Traceback" not in err and "internal error" not in err
-    for w in words:
-        assert w in lines[0], (w, lines[0])
-    return lines[0]
 
 
 def write(path, d):

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from fdid_fmi import identify as idf
-from fdid_fmi.cli import main
 from fdid_fmi.errors import InputError
 from fdid_fmi.identify.structure import Bounds
 from fdid_fmi.trace import Channel, Trace
+from cli_support import one_line, run_cli as run
 
 TS = 1e-3
 
@@ -40,15 +40,6 @@ def write_csv(path, tr, extra=None):
     return path
 
 
-def run(capsys, *args):
-    try:
-        code = main([str(a) for a in args])
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
 def identify_strict(capsys, tmp_path, trace, *args):
     """``fdid identify`` on ``trace`` (as run.csv, model to m.json) with RuntimeWarnings turned
     into errors: an overflow warning would be a second stderr line. Returns (code, out, err)."""
@@ -56,15 +47,6 @@ def identify_strict(capsys, tmp_path, trace, *args):
     with warnings.catch_warnings():
         warnings.simplefilter("error", RuntimeWarning)
         return run(capsys, "identify", csv, *args, "-o", tmp_path / "m.json")
-
-
-def one_line(code, err, *words):
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert code == 2, (code, err)
-    assert len(lines) == 1 and "Traceback" not in err and "internal error" not in err, err
-    for w in words:
-        assert w in lines[0], (w, lines[0])
-    return lines[0]
 
 
 @pytest.fixture(scope="module")
