@@ -219,3 +219,16 @@ def test_cli_optimise_through_the_fmu(machine, tmp_path):
     rows = tables["feeds"]
     after = rows["columns"].index("contour_max_after_um")
     assert max(row[after] for row in rows["rows"]) <= 30.0
+
+
+def test_cli_plan_into_a_closed_pipe_stops_quietly(machine, tmp_path):
+    # `fdid plan ... | head -1`: the reader goes away; before, "fdid plan: error: Broken pipe", exit 2
+    cfg, model = machine
+    model.save(tmp_path / "m.json")
+    nc = tmp_path / "p.nc"
+    nc.write_text(PROGRAM + "M30\n")
+    p = subprocess.Popen([sys.executable, "-m", "fdid_fmi.cli", "plan", str(nc), "--model", str(tmp_path / "m.json"),
+                          "--limits", "100,2000,1e5"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    p.stdout.close()            # gone before the first line: every write meets a closed pipe
+    err = p.stderr.read()
+    assert p.wait(timeout=600) == 141 and err == "", err

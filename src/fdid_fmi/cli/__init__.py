@@ -20,6 +20,7 @@ import argparse
 import contextlib
 import importlib
 import itertools
+import os
 import sys
 import traceback
 
@@ -169,6 +170,11 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of stdout has gone (`fdid plan ... | head`): stop quietly, as a Unix tool
+        # killed by SIGPIPE does; stdout goes to /dev/null so the exit's flush cannot fail again
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141          # 128 + SIGPIPE, what a shell reports for such a tool
     except MemoryError:
         if debug:
             traceback.print_exc()
