@@ -158,9 +158,13 @@ def test_block_delete_is_run_and_said(tmp_path, model_xy, capsys):
     assert [b.line for b in prog.blocks] == [2, 3, 4] and prog.blocks[1].end[0] == 100.0
     assert prog.notes == [(3, "'/' (block delete) block run, as with the block-delete switch off")]
     nc = _nc(tmp_path, "G21 G90 F3000\nG1 X10\n/N60 G1 X12 Y5\nG1 X0 Y0\n")
-    code, out, err = _plan(capsys, nc, "--model", model_xy, "--limits", LIMITS)
+    code, out, err = _plan(capsys, nc, "--model", model_xy, "--limits", LIMITS, "--json", tmp_path / "r.json")
     assert code == 0, err
     assert "note: row 3: '/' (block delete) block run" in out
+    # and in the report, which had neither the notes nor (in the JSON) the passed-over lines
+    import json
+    said = json.loads((tmp_path / "r.json").read_text())["data"]["program"]["notes"]
+    assert said == [[3, "'/' (block delete) block run, as with the block-delete switch off"]]
 
 
 def test_program_ends_at_the_closing_percent(tmp_path, model_xy, capsys):

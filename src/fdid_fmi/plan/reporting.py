@@ -110,6 +110,9 @@ def plan_report(program, pr, model=None, tol_mm=None, feed_plan=None, fmu=None, 
                   + (f"{len(flagged)} block(s) exceed it: {', '.join(map(str, flagged))}." if flagged
                      else "every block stays inside it."))
     rep.add_text(words, heading="Summary")
+    if program.notes:       # how blocks were read (block delete): as the console says them
+        rep.add_text("How the program was read: " + "; ".join(f"line {r}: {w}" for r, w in program.notes[:60])
+                     + ("; ..." if len(program.notes) > 60 else ""))
     if program.ignored:
         rep.add_text("Passed over (they do not move the axes): "
                      + ", ".join(f"line {r}: {w}" for r, w in program.ignored[:60]))
@@ -151,6 +154,8 @@ def plan_report(program, pr, model=None, tol_mm=None, feed_plan=None, fmu=None, 
                                    "reachable": fpn.reachable})
     rep.add_data("summary", s)
     rep.add_data("interpolation", pr.interp.info)
+    rep.add_data("program", {"source": str(program.source), "notes": [[r, w] for r, w in program.notes],
+                             "passed_over": [[r, w] for r, w in program.ignored]})
     if model is not None:
         add_model_section(rep, model, fmu=fmu, validation=validation)
     return rep
