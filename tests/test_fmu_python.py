@@ -93,3 +93,16 @@ os._exit(0)
 """
     out = subprocess.run([sys.executable, "-c", child], capture_output=True, text=True, timeout=120)
     assert out.stdout.split() == ["refused", "4"] * 3, (out.stdout, out.stderr[-2000:])
+
+
+def test_python_backend_refuses_a_v_tilde_the_friction_solve_cannot_resolve(tmp_path):
+    # as the C FMU (test_review6_model_json): checked where the solve runs, both orders accepted
+    from fmpy import simulate_fmu
+    from test_review6_model_json import LO, TS, two_axis
+    from fdid_fmi.model import DriveModel
+    fmu = str(export_fmu(DriveModel.from_dict(two_axis()), tmp_path / "p.fmu", backend="python"))
+    with pytest.raises(Exception):
+        simulate_fmu(fmu, stop_time=0.01, output_interval=TS, start_values={"y_v_tilde": 1e-20})
+    r = simulate_fmu(fmu, stop_time=0.01, output_interval=TS,
+                     start_values={"x_v_tilde": 0.5 * LO, "x_friction_level": 0.1})
+    assert np.isfinite(r["x_x"]).all()

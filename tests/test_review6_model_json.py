@@ -230,7 +230,7 @@ def test_tiny_v_tilde_is_refused_naming_it(capsys, tmp_path, v_tilde):
 @pytest.mark.parametrize("level", [1.0, 10.0])
 def test_v_tilde_bound_just_below_and_above(level):
     lo = 1e-12 * level * BETA
-    with pytest.raises(InputError, match=r"column 'x_dnf.v_tilde': parameter v_tilde must be at least"):
+    with pytest.raises(InputError, match=r"column .x_dnf.v_tilde.: v_tilde must be at least"):
         DriveModel.from_dict(two_axis(v_tilde=0.99 * lo, level=level))
     d = two_axis(v_tilde=1.0, level=level)
     d["inputs"][3]["params"]["v_tilde"] = 0.99 * lo          # the other axis is checked too
@@ -242,6 +242,40 @@ def test_v_tilde_bound_just_below_and_above(level):
     d_fric = np.abs(r.u[:, [1, 3]])
     assert d_fric.max() <= level * (1 + 1e-3), d_fric.max()    # the friction keeps to its level
     assert d_fric.max() >= 0.99 * level                         # and reaches it (slides)
+
+
+# A v_tilde given as a parameter (simulate's params, the FMU's tunable <axis>_v_tilde) is held to
+# the same bound, checked where the friction solve runs: before, only > 0 was checked, and
+# 1e-20 mm/s ran to outputs of 1e193 mm (the model file's bound above does not reach it).
+LO = 1e-12 * BETA          # the least v_tilde at level 1
+
+
+def test_tiny_v_tilde_parameter_is_refused_in_simulate():
+    m = DriveModel.from_dict(two_axis())
+    with pytest.raises(InputError, match=r"column 'y_v_tilde': v_tilde must be at least 1e-13 mm/s at friction "
+                                         r"level 1, got 1e-20"):
+        simulate(m, _commands(), Ts=TS, params={"y_v_tilde": 1e-20})
+    # the bound scales with the level set beside it, in any order, and a friction switched off has none
+    for params in ({"x_v_tilde": 0.5 * LO, "x_friction_level": 0.1}, {"x_v_tilde": 1e-20, "x_friction_on": False}):
+        assert np.isfinite(simulate(m, _commands(), Ts=TS, params=params).y).all(), params
+
+
+def test_tiny_v_tilde_parameter_is_refused_by_the_fmu(tmp_path):
+    import fmpy
+    from fdid_fmi.fmu import export_fmu
+    m = DriveModel.from_dict(two_axis())
+    fmu = str(export_fmu(m, tmp_path / "d.fmu"))
+    said = []
+    with pytest.raises(Exception, match="status 3"):
+        fmpy.simulate_fmu(fmu, stop_time=0.05, output_interval=TS, start_values={"y_v_tilde": 1e-20},
+                          logger=lambda *a: said.append(a[-1].decode()))
+    assert any("y_v_tilde = 1e-20 mm/s is below 1e-13 mm/s" in m for m in said), said
+    # level first or v_tilde first: the pair is checked, not each value against the other's old one
+    for order in (("x_v_tilde", "x_friction_level"), ("x_friction_level", "x_v_tilde")):
+        values = {"x_v_tilde": 0.5 * LO, "x_friction_level": 0.1}
+        r = fmpy.simulate_fmu(fmu, stop_time=0.05, output_interval=TS,
+                              start_values={k: values[k] for k in order})
+        assert np.isfinite(r["x_x"]).all()
 
 
 def test_v_tilde_without_feed_through_keeps_its_gain_a_model_number(tmp_path):

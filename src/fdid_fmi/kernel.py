@@ -24,6 +24,7 @@ import operator
 import numpy as np
 
 from .errors import FdidError, InputError, finite_number
+from .model import vtilde_floor_message
 
 _D = ct.POINTER(ct.c_double)
 _I = ct.POINTER(ct.c_int)
@@ -48,7 +49,7 @@ class _Model(ct.Structure):
                 ("fric_input", _I), ("fric_vel_output", _I), ("fric_vel_diff", _I),
                 ("axis_cmd_input", _I), ("axis_pos_output", _I), ("axis_err_output", _I),
                 ("axis_vel_output", _I), ("axis_tool_output", _I),
-                ("axis_level0", _D), ("axis_vtilde0", _D), ("n_vars", ct.c_int), ("vars", ct.c_void_p)]
+                ("axis_level0", _D), ("axis_vtilde0", _D), ("axis_vtilde_floor", _D), ("n_vars", ct.c_int), ("vars", ct.c_void_p)]
 
 
 class _Flags(ct.Structure):
@@ -80,6 +81,7 @@ def _lib():
     lib.fdid_state_bind.argtypes = [sp, ct.POINTER(_Model), _D]
     for f in ("fdid_state_defaults", "fdid_initialize", "fdid_outputs", "fdid_advance"):
         getattr(lib, f).argtypes = [sp]
+    lib.fdid_unresolved_friction.argtypes = [sp]
     lib.fdid_run.restype = None
     lib.fdid_run.argtypes = [sp, ct.c_longlong, _D, _D, _D, _D, _D]
     lib.fdid_allpole.restype = lib.fdid_regressor_rows.restype = None
@@ -148,7 +150,8 @@ class CompiledModel:
                             float(p.params.get("width_mm", 1.0)) if feat else 1.0)
         ints = [_iarr(v) for v in (lay.fric_inputs, lay.fric_vel_output, lay.fric_vel_diff, lay.axis_cmd,
                                    lay.axis_pos, lay.axis_err, lay.axis_vel, lay.axis_tool)]
-        dbls = [np.ascontiguousarray(v, dtype=float) for v in (lay.axis_level0, lay.axis_vtilde0)]
+        dbls = [np.ascontiguousarray(v, dtype=float) for v in (lay.axis_level0, lay.axis_vtilde0,
+                                                                  lay.axis_vtilde_floor)]
         self._keep += [ins, *ints, *dbls]
         C, D, S_, S2_, G1_ = (_dptr(x) for x in self._keep[:5])
         csr = [(_iarr(st), _iarr(col), np.ascontiguousarray(val if len(val) else [0.0]))
@@ -192,7 +195,8 @@ class Stepper:
 
     def set_parameters(self, params, axes):
         """``<axis>_friction_on / _friction_level / _v_tilde`` overrides (the FMU parameters),
-        checked as the FMU checks them (level finite and >= 0, v_tilde finite and > 0); an
+        checked as the FMU checks them (level finite and >= 0, v_tilde finite and > 0, and at least
+        the level times the model's floor, :meth:`check_friction_resolution`); an
         unknown name is an error, not ignored; so are these names for an axis without friction
         (the FMU has no such parameter; the core would ignore the value) and a ``friction_on``
         that is not a boolean (the string ``"false"`` would have meant on)."""
@@ -224,6 +228,17 @@ class Stepper:
                 self.views["vtilde"][k] = vt
             if f"{a}_friction_on" in params:
                 self.views["on"][k] = 1.0 if params[f"{a}_friction_on"] else 0.0
+        self.check_friction_resolution()
+
+    def check_friction_resolution(self):
+        """InputError naming ``<axis>_v_tilde`` when friction is on with a v_tilde below its level
+        times the model's floor (``fdid_unresolved_friction``, model.vtilde_floor_per_level)."""
+        k = _lib().fdid_unresolved_friction(ct.byref(self.s))
+        if k >= 0:
+            floor = self.cm.layout.axis_vtilde_floor[k]
+            vt, lv = float(self.views["vtilde"][k]), float(self.views["level"][k])
+            raise InputError(vtilde_floor_message(vt, lv, floor, len(self.cm.layout.fric_inputs)),
+                             column=f"{self.cm.layout.axes[k]}_v_tilde")
 
     def touch(self, initial=False):
         """Inputs or parameters changed: outputs (and, before the first step, the start) are due."""

@@ -819,26 +819,38 @@ def check_simulation_numbers(model):
 FRICTION_RATIO_MAX = 1e12
 
 
-def check_friction_resolution(model):
-    """Raise InputError naming ``<input>.v_tilde`` when a model with several friction inputs has
-    a v_tilde below L * max(sum_c |beta_qc| / FRICTION_RATIO_MAX, 1 / MAX_ABS) (see above)."""
+def vtilde_floor_per_level(model):
+    """``{friction input index: least v_tilde per unit friction level}`` (mm/s): the bound
+    above, max(sum_c |beta_qc| / FRICTION_RATIO_MAX, 1 / MAX_ABS) for input q; ``{}`` with fewer
+    than two friction inputs (solved in closed form). v_tilde must be at least ``level`` times
+    this, in the model file and as a tunable FMU / simulation parameter."""
     fric = [i for i, p in enumerate(model.inputs) if p.kind == "friction"]
     if len(fric) < 2:
-        return
+        return {}
+    out = {}
     for i in fric:
-        prt = model.inputs[i]
         vo, differenced = model.friction_velocity_source(i)
         beta = float(np.sum(np.abs(model.D[vo, fric]))) / (model.Ts if differenced else 1.0)  # mm/s per unit
+        out[i] = max(beta / FRICTION_RATIO_MAX, 1.0 / MAX_ABS)
+    return out
+
+
+def vtilde_floor_message(vt, level, floor, n_friction):
+    """Why a v_tilde below ``level * floor`` is refused (one sentence, for every place that checks)."""
+    return (f"v_tilde must be at least {level * floor:.3g} mm/s at friction level {level:g}, got {vt:.3g}: "
+            f"the friction solve of {n_friction} friction inputs resolves no smaller one; below it the "
+            f"friction exceeds its level and the outputs grow without bound or are NaN")
+
+
+def check_friction_resolution(model):
+    """Raise InputError naming ``<input>.v_tilde`` when a model with several friction inputs has
+    a v_tilde below its level times :func:`vtilde_floor_per_level` (see above)."""
+    floors = vtilde_floor_per_level(model)
+    for i, floor in floors.items():
+        prt = model.inputs[i]
         level, vt = float(prt.params.get("level", 1.0)), float(prt.params["v_tilde"])
-        lo = level * max(beta / FRICTION_RATIO_MAX, 1.0 / MAX_ABS)
-        if vt < lo:
-            why = (f"{1.0 / FRICTION_RATIO_MAX:g} x level {level:g} x {beta:.3g} mm/s, the velocity "
-                   f"change per unit friction in one sample" if beta / FRICTION_RATIO_MAX >= 1.0 / MAX_ABS
-                   else f"level {level:g} / {MAX_ABS:g}")
-            raise InputError(f"parameter v_tilde must be at least {lo:.3g} mm/s for this model, got "
-                             f"{vt:.3g}: the friction solve of {len(fric)} friction inputs resolves "
-                             f"no smaller one ({why}); below it the friction exceeds its level and "
-                             f"the outputs grow without bound or are NaN", column=f"{prt.name}.v_tilde")
+        if vt < level * floor:
+            raise InputError(vtilde_floor_message(vt, level, floor, len(floors)), column=f"{prt.name}.v_tilde")
 
 
 def check_quasi_static(model, source=None):

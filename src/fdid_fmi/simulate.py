@@ -143,7 +143,8 @@ def simulate(model, trace_or_commands, Ts=None, start_velocity=None, params=None
         ``start_velocity`` is given; otherwise (and always with ``ramp``) the steady ramp.
     params : dict, optional
         Parameter overrides like the FMU's, checked as the FMU checks them:
-        ``<axis>_friction_on``, ``<axis>_friction_level`` (>= 0), ``<axis>_v_tilde`` (> 0).
+        ``<axis>_friction_on``, ``<axis>_friction_level`` (>= 0), ``<axis>_v_tilde`` (> 0, and with
+        several friction inputs at least the level times ``model.vtilde_floor_per_level``).
     externals : dict name -> array, optional
         Values of ``external`` inputs, one finite value per command sample (taken from the
         trace's channels otherwise).

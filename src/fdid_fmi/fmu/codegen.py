@@ -133,6 +133,7 @@ def model_data_c(layout, guid, model_identifier):
     parts.append(_iarray("data_axis_tool", layout.axis_tool))
     parts.append(_darray("data_axis_level0", layout.axis_level0))
     parts.append(_darray("data_axis_vtilde0", layout.axis_vtilde0))
+    parts.append(_darray("data_axis_vtilde_floor", layout.axis_vtilde_floor))
     vrows = []
     for v in layout.variables:
         t = 0 if v.type == "Real" else 1
@@ -148,7 +149,7 @@ def model_data_c(layout, guid, model_identifier):
         "    data_inputs,\n"
         f"    {len(layout.fric_inputs)}, data_fric_input, data_fric_vel_output, data_fric_vel_diff,\n"
         "    data_axis_cmd, data_axis_pos, data_axis_err, data_axis_vel, data_axis_tool,\n"
-        "    data_axis_level0, data_axis_vtilde0,\n"
+        "    data_axis_level0, data_axis_vtilde0, data_axis_vtilde_floor,\n"
         f"    {len(layout.variables)}, data_vars\n"
         "};\n")
     return "".join(parts)

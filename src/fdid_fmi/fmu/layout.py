@@ -31,7 +31,8 @@ import numpy as np
 from scipy import sparse
 
 from ..errors import InputError
-from ..model import FEATURE_FUNCTIONS, LIBM_FUNCTIONS, DriveModel, QuasiStaticModel, delayed_input
+from ..model import (FEATURE_FUNCTIONS, LIBM_FUNCTIONS, DriveModel, QuasiStaticModel, delayed_input,
+                     vtilde_floor_per_level)
 
 # FMI unit name and base-unit exponents/factor (to SI) for the canonical units of fdid_fmi.units
 FMI_UNITS = {
@@ -90,6 +91,7 @@ class FmuLayout:
     axis_tool: list
     axis_level0: list
     axis_vtilde0: list
+    axis_vtilde_floor: list   # least v_tilde per unit level (model.vtilde_floor_per_level)
     uses_libm: bool
 
     def by_name(self, name):
@@ -156,11 +158,13 @@ def build_layout(model):
     fric = [i for i, p in enumerate(ins) if p.kind == "friction"]
     sources = [m.friction_velocity_source(i) for i in fric]
     fvo, fvd = [o for o, _ in sources], [int(d) for _, d in sources]
-    level0, vt0 = [], []
+    level0, vt0, floor = [], [], []
+    floors = vtilde_floor_per_level(m)
     for a in axes:
         ps = [ins[i] for i in fric if ins[i].axis == a]
         level0.append(float(ps[0].params.get("level", 1.0)) if ps else 0.0)
         vt0.append(float(ps[0].params["v_tilde"]) if ps else 1.0)
+        floor.append(max([floors[i] for i in fric if ins[i].axis == a and i in floors], default=0.0))
     uses_libm = any(p.kind == "feature" and p.params.get("function") in LIBM_FUNCTIONS for p in ins)
 
     deps = _dependencies(m, axes, cmd, pos, vel, fric, fvo)
@@ -232,7 +236,9 @@ def build_layout(model):
             V.append(FmuVariable(unique(f"{a}_v_tilde", "p_"), "v_tilde", k, "parameter", "tunable",
                                  unit=VELOCITY_UNIT.get(ins[cmd[k]].unit or "mm", "mm_s"),
                                  start=vt0[k], initial="exact",
-                                 description=f"friction transition velocity v_tilde of axis {a} (> 0)"))
+                                 description=f"friction transition velocity v_tilde of axis {a} (> 0"
+                                             + (f"; at least {floor[k]:.3g} x the friction level" if floor[k] else "")
+                                             + ")"))
             V.append(FmuVariable(unique(f"{a}_friction_on", "p_"), "on", k, "parameter", "tunable",
                                  type="Boolean", start=True, initial="exact",
                                  description=f"friction of axis {a} on (true) or off (false)"))
@@ -247,7 +253,8 @@ def build_layout(model):
         v.depends = [in_name[d] for d in v.depends]
     return FmuLayout(model=m, axes=axes, variables=V, fric_inputs=fric, fric_vel_output=fvo,
                      fric_vel_diff=fvd, axis_cmd=cmd, axis_pos=pos, axis_err=err, axis_vel=vel,
-                     axis_tool=tool, axis_level0=level0, axis_vtilde0=vt0, uses_libm=uses_libm)
+                     axis_tool=tool, axis_level0=level0, axis_vtilde0=vt0,
+                     axis_vtilde_floor=floor, uses_libm=uses_libm)
 
 
 def sparse_rows(X):

@@ -69,6 +69,7 @@ class FdidSlaveBase(Fmi2Slave):
             x = self._st.views[_VIEW[role]][a]
             return bool(x) if role == "on" else float(x)
         lay = self._lay.layout
+        self._check_friction()
         y = self._st.outputs()
         if role == "pos":
             return float(y[lay.axis_pos[a]])
@@ -83,6 +84,13 @@ class FdidSlaveBase(Fmi2Slave):
         if role == "y":
             return float(y[a])
         return float(self._st.views["u"][a])
+
+    def _check_friction(self):
+        # as the C FMU: checked where the friction solve runs, level and v_tilde set in any order
+        try:
+            self._st.check_friction_resolution()
+        except Exception as exc:  # noqa: BLE001 - an FMI error, not a traceback in the master
+            raise ValueError(str(exc)) from None
 
     def enter_initialization_mode(self):
         self._st.touch(initial=True)
@@ -116,6 +124,7 @@ class FdidSlaveBase(Fmi2Slave):
             raise ValueError(f"a communication step of {n} internal steps exceeds {MAX_STEPS}")
         if self._stop_time is not None and end > self._stop_time + self._tolerance(end):
             raise ValueError(f"the step would end at {end!r} s, past the stop time {self._stop_time!r} s")
+        self._check_friction()
         for _ in range(n):
             self._st.advance()
         self._steps = k

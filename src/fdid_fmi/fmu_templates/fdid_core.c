@@ -411,6 +411,17 @@ void fdid_advance(FdidState *S) {
     S->f.out_dirty = 1;
 }
 
+/* the first axis whose friction is on with a v_tilde below level x axis_vtilde_floor, the least
+ * the coupled friction solve resolves (model.vtilde_floor_per_level), or -1. Below it the
+ * friction exceeds its level and the outputs grow without bound: the FMU refuses to step or
+ * to evaluate outputs there rather than hand them out. */
+int fdid_unresolved_friction(const FdidState *S) {
+    int a;
+    for (a = 0; a < S->M->n_axes; a++)
+        if (S->on[a] != 0.0 && S->vtilde[a] < S->level[a] * S->M->axis_vtilde_floor[a]) return a;
+    return -1;
+}
+
 /* value of a Real / Boolean variable (outputs are brought up to date first) */
 double fdid_var_value(FdidState *S, const FdidVar *v) {
     const FdidModel *M = S->M;

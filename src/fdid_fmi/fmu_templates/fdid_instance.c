@@ -254,9 +254,26 @@ static int set_value(FdidInstance *I, const char *fn, const FdidVar *v, double x
     return 1;
 }
 
+/* refuses (after logging) a v_tilde the friction solve cannot resolve at the level set
+ * (fdid_unresolved_friction): checked where the solve runs, not when either is set, so that a
+ * master may set level and v_tilde in either order */
+static int friction_resolved(FdidInstance *I, const char *fn) {
+    int a = fdid_unresolved_friction(&I->s), i;
+    const char *name = "v_tilde";
+    if (a < 0) return 1;
+    for (i = 0; i < fdid_model.n_vars; i++)
+        if (fdid_model.vars[i].role == FDID_P_VTILDE && fdid_model.vars[i].index == a) name = fdid_model.vars[i].name;
+    fdid_fail(I, "%s: %s = %g mm/s is below %g mm/s, the least the friction solve of this model resolves "
+                 "at friction level %g (below it the friction exceeds its level and the outputs grow without "
+                 "bound): raise it or lower the level", fn, name, I->s.vtilde[a],
+              I->s.level[a] * fdid_model.axis_vtilde_floor[a], I->s.level[a]);
+    return 0;
+}
+
 int fdid_get_real(FdidInstance *I, const char *fn, unsigned vr, double *value) {
     const FdidVar *v = lookup(I, fn, vr, FDID_T_REAL);
     if (!v) return 0;
+    if (v->role >= FDID_V_POS && v->role <= FDID_V_U && !friction_resolved(I, fn)) return 0;
     *value = fdid_var_value(&I->s, v);
     if (!fdid_is_finite(*value)) {     /* a diverged model or a forged state: never a value with OK */
         fdid_fail(I, "%s: %s is not finite (the model diverged or its state is corrupt)", fn, v->name);
@@ -510,6 +527,7 @@ int fdid_do_step(FdidInstance *I, const char *fn, double t_comm, double h) {
     if (I->stop_defined && t_end > I->stop_time + grid_tolerance(t_end))
         return fdid_fail(I, "%s: the step would end at %.17g s, past the stop time %.17g s", fn, t_end,
                          I->stop_time);
+    if (!friction_resolved(I, fn)) return 0;
     for (k = 0; k < nsteps; k++) fdid_advance(&I->s);
     I->s.f.started = 1;
     /* a step that leaves the model's state non-finite failed: report it here, not first at a

@@ -103,6 +103,8 @@ typedef struct {
     const int *axis_tool_output;      /* per axis: tool_position output index or -1 */
     const double *axis_level0;        /* per axis: default friction level (0 if no friction) */
     const double *axis_vtilde0;       /* per axis: default v_tilde, mm/s (1 if no friction) */
+    const double *axis_vtilde_floor;  /* per axis: least v_tilde per unit friction level, mm/s
+                                         (0: any v_tilde > 0; model.vtilde_floor_per_level) */
     int n_vars;
     const FdidVar *vars;              /* value reference = position in this table */
 } FdidModel;
@@ -135,6 +137,7 @@ void fdid_initialize(FdidState *S);
 void fdid_outputs(FdidState *S);
 void fdid_advance(FdidState *S);
 double fdid_var_value(FdidState *S, const FdidVar *v);
+int fdid_unresolved_friction(const FdidState *S);
 void fdid_run(FdidState *S, long long N, const double *cmd, const double *ext, double *Y,
               double *U, double *V);
 size_t fdid_sizeof_state(void);
