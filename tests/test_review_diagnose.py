@@ -363,3 +363,27 @@ def test_cli_empty_detector_list_is_refused_not_all(small, tmp_path, capsys, giv
     assert main(["diagnose", str(mpath), "--train", str(csv), "--detectors", given]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no detector given" in err[0], err
+
+
+# ------------------------------------------------------------------ a held-out trace unlike the training one
+def test_held_out_unlike_note_at_its_threshold():
+    from fdid_fmi.diagnose.limits import HELD_OUT_UNLIKE, NoteKind, held_out_unlike
+    before = {"train": {"x": {"rms_um": 1.0}, "x.tool": {"rms_um": 2.0}, "y": {"rms_um": 1.0}},
+              "val": {"x": {"rms_um": HELD_OUT_UNLIKE * 0.999}, "x.tool": {"rms_um": 2.0 * HELD_OUT_UNLIKE},
+                      "y": {"rms_um": 0.999 * HELD_OUT_UNLIKE}}}
+    notes = held_out_unlike(before)
+    assert [(n.kind, n.axis) for n in notes] == [(NoteKind.HELD_OUT_UNLIKE, "x")]
+    assert "x.tool" in notes[0].text and notes[0].statistic == pytest.approx(HELD_OUT_UNLIKE)
+
+
+def test_diagnosis_says_when_the_held_out_trace_is_in_other_units(small):
+    """A held-out trace recorded in µm under a mm header (positions 1000x): the diagnosis ran and
+    judged effects on it without a word; now a note. The same held-out trace in mm: no note."""
+    model, tr, va = small
+    um = Trace.from_arrays(va.t, {"x": {"cmd": va.cmd("x") * 1e3, "act": va.act("x") * 1e3}}, source="val_um.csv")
+    for val, noted in ((um, True), (va, False)):
+        d = diagnose(model, tr, val, detectors=["coupling"])       # one axis: nothing to try
+        kinds = [n.kind.value for n in d.notes]
+        assert ("held_out_unlike" in kinds) == noted, (kinds, d.before)
+    note = next(n for n in diagnose(model, tr, um, detectors=["coupling"]).notes if n.kind.value == "held_out_unlike")
+    assert "same units" in note.text and note.statistic > 100

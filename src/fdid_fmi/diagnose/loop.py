@@ -53,7 +53,8 @@ from ..model import DriveModel
 from . import augment as ag
 from . import coupling, delay, friction, mode, order, periodic, whiteness
 from .base import Context, command_velocity, implausible
-from .limits import Note, NoteKind, data_limits, lost_motion_carried, not_checked, order_too_low, play_input
+from .limits import (Note, NoteKind, data_limits, held_out_unlike, lost_motion_carried, not_checked,
+                     order_too_low, play_input)
 from .refits import Refits
 from .residuals import Residuals, residuals, split_at_standstill
 
@@ -702,6 +703,7 @@ def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0
     play = {a: current.inputs[i].params["width_mm"] for a in model.axes
             if (i := play_input(current, a)) is not None}
     kept = diag.effects_added + [e for e in (model.effects or []) if e not in diag.effects_added]
-    diag.notes = order_notes + unchecked + data_limits(model.axes, tool_axes, conc, kept, lost, play)
+    diag.notes = (held_out_unlike(diag.before) + order_notes + unchecked
+                  + data_limits(model.axes, tool_axes, conc, kept, lost, play))
     diag.wall_time_s = time.perf_counter() - t0
     return diag
