@@ -127,6 +127,24 @@ def test_a_stated_time_unit_is_read(tmp_path, header, units, Ts):
     assert tr.Ts == pytest.approx(Ts)
 
 
+def test_a_slow_stated_time_unit_and_unitless_positions_are_said(tmp_path, capsys):
+    """Session 35: ms under 't_s' (the user's own word, so read as s) and positions whose names
+    state no unit (read as mm) were read without a word: a model 1000x off. Now notes, on the
+    trace's meta and printed by every command that reads a trace; a clean file gets none."""
+    slow = read_trace(_ms_csv(tmp_path / "slow.csv", "t_s,x_cmd_mm,x_mm"))
+    assert slow.Ts == pytest.approx(1.0)
+    assert slow.meta["notes"] == ["column 't_s' steps by 1 s (1 Hz), read in s as its name says; servo "
+                                  "traces step by 0.1-10 ms: if it is in ms, give --unit t_s=ms"]
+    bare = read_trace(_ms_csv(tmp_path / "bare.csv", "t_ms,x_cmd,x"))
+    assert bare.meta["notes"] == ["columns x_cmd (mm), x (mm) state no unit and are read in these units; if "
+                                  "one is in another, name it like x_um or give --unit COLUMN=UNIT"]
+    assert "notes" not in read_trace(_ms_csv(tmp_path / "ok.csv", "t_ms,x_cmd_mm,x_mm")).meta
+    assert "notes" not in read_trace(_ms_csv(tmp_path / "ok2.csv", "t_s,x_cmd_mm,x_mm", step=0.099)).meta
+    code, out, err = run_cli(capsys, "identify", tmp_path / "slow.csv", "-o", tmp_path / "m.json",
+                             "--method", "quasi-static")
+    assert f"note: {tmp_path / 'slow.csv'}: column 't_s' steps by 1 s" in out, (out, err)
+
+
 def test_the_limit_is_a_step_of_a_tenth_of_a_second(tmp_path):
     assert read_trace(_ms_csv(tmp_path / "a.csv", step=0.099)).Ts == pytest.approx(0.099)
     with pytest.raises(InputError, match="steps by 0.1 "):

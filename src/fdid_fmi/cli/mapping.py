@@ -141,6 +141,8 @@ def trace_from_args(path, args):
     else:
         kw = {"layout": layout, "axes": axes}
     trace = read_trace(path, mapping=mapping, units=units, **kw)
+    for note in trace.meta.get("notes", []):    # how it was read, where that may be wrong
+        print(f"note: {path}: {note}")
     if axes and trace.meta.get("layout") not in ("emps", "siso-gui", "verify-gui"):
         # elsewhere the axes come from the column names or --map: --axes would be ignored
         raise InputError(f"--axes names the axes of the GUI layouts and of EMPS; this file's axes "

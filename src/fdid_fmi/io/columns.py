@@ -33,7 +33,10 @@ and whose unit says another is refused with a clear message.
 
 A time column with no unit is read in s, but one of 16 or more samples stepping by 0.1 s or
 more is refused (:func:`check_time_unit`): servo traces step by 0.1-10 ms, so it is in ms (1 kHz read as
-Ts = 1 s) or us; ``t_ms``, ``t [ms]`` or ``--unit t=ms`` states the unit.
+Ts = 1 s) or us; ``t_ms``, ``t [ms]`` or ``--unit t=ms`` states the unit. A stated time unit is
+read as stated, with a note (``meta["notes"]``, printed by the CLI) when it steps that slowly
+(:func:`slow_time_note`); so are role columns whose names state no unit (read in the role's
+default unit, mm for positions).
 
 The tracking-error pseudo-role ``err`` is not a ``Trace`` role: the column is kept as an
 extra channel, and when an axis has ``err`` and ``act`` but no ``cmd`` (the thesis GUI
@@ -358,8 +361,11 @@ def assemble(columns, *, source, mapping=None, units=None, file_units=None, rows
 
     t = U.to_canonical(values(tcol), tunit, source, tcol)[0]
     check_time(t, source=source, column=tcol, row_of=row_of, jitter_tol=jitter_tol)
+    notes = []
     if stated[tcol] is None:
         check_time_unit(t, source=source, column=tcol)
+    else:
+        notes += slow_time_note(t, column=tcol, unit=stated[tcol])
 
     channels = {}
     for col in names:
@@ -393,6 +399,13 @@ def assemble(columns, *, source, mapping=None, units=None, file_units=None, rows
     meta["units_in_file"] = {c: (stated[c] or assumed.get(c) or unit_of.get(c)) for c in names}
     if assumed:
         meta["assumed_units"] = assumed
+        read_as = {c: u for c, u in assumed.items() if c != tcol}
+        if read_as:     # said: a position in um or inch read as mm is a model 1000x off
+            notes.append("columns " + ", ".join(f"{c} ({u})" for c, u in read_as.items())
+                         + " state no unit and are read in these units; if one is in another, name "
+                           "it like x_um or give --unit COLUMN=UNIT")
+    if notes:
+        meta["notes"] = notes
     if errs:
         meta["error_channels"] = dict(errs)
     if derived:
@@ -440,6 +453,21 @@ def check_time_unit(t, *, source, column):
             f"or a sample count). State the unit: name the column like {base}_ms (or write "
             f"'{base} [ms]' in a header), or give --unit {column}=ms (Python: units={{'{column}': "
             f"'ms'}}); if it really is seconds, --unit {column}=s", source=source, column=column)
+
+
+def slow_time_note(t, *, column, unit):
+    """``[note]`` when a time column with a stated unit steps by ``MAX_UNSTATED_STEP_S`` (0.1 s)
+    or more, else ``[]``: the unit was stated, so it is read as stated (a slow record may be
+    real), but servo traces step by 0.1-10 ms, and a ms column under an s name (``t_s``) makes
+    every pole bound and Ts of the model 1000x off without an error (session 35: the bundled
+    example's time in ms under ``t_s`` identified a quasi-static K_vel of 12.4 s for 0.0124 s)."""
+    if t.size < MIN_CHECKED_SAMPLES:
+        return []
+    ts = float(np.median(np.diff(t)))
+    if ts < MAX_UNSTATED_STEP_S * (1 - 1e-6):
+        return []
+    return [f"column '{column}' steps by {ts:.6g} s ({1.0 / ts:.4g} Hz), read in {unit} as its name "
+            f"says; servo traces step by 0.1-10 ms: if it is in ms, give --unit {column}=ms"]
 
 
 def check_time(t, *, source, column, row_of=None, jitter_tol=0.05):
