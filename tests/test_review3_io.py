@@ -133,7 +133,7 @@ def test_a_slow_stated_time_unit_and_unitless_positions_are_said(tmp_path, capsy
     trace's meta and printed by every command that reads a trace; a clean file gets none."""
     slow = read_trace(_ms_csv(tmp_path / "slow.csv", "t_s,x_cmd_mm,x_mm"))
     assert slow.Ts == pytest.approx(1.0)
-    assert slow.meta["notes"] == ["column 't_s' steps by 1 s (1 Hz), read in s as its name says; servo "
+    assert slow.meta["notes"] == ["column 't_s' steps by 1 s (1 Hz), read in s as stated; servo "
                                   "traces step by 0.1-10 ms: if it is in ms, give --unit t_s=ms"]
     bare = read_trace(_ms_csv(tmp_path / "bare.csv", "t_ms,x_cmd,x"))
     assert bare.meta["notes"] == ["columns x_cmd (mm), x (mm) state no unit and are read in these units; if "

@@ -442,10 +442,8 @@ def check_time_unit(t, *, source, column):
     ----------
     t : ndarray, s (as read with no unit, checked by :func:`check_time`)
     """
-    if t.size < MIN_CHECKED_SAMPLES:
-        return
-    ts = float(np.median(np.diff(t)))
-    if ts >= MAX_UNSTATED_STEP_S * (1 - 1e-6):     # 0.1 written in a file differs by rounding
+    ts = _slow_step(t)
+    if ts is not None:
         base = split_unit(column)[0] if _is_time_name(split_unit(column)[0]) else "t"
         raise InputError(
             f"the time column has no unit and steps by {ts:.6g} (median), which as seconds would "
@@ -461,13 +459,21 @@ def slow_time_note(t, *, column, unit):
     real), but servo traces step by 0.1-10 ms, and a ms column under an s name (``t_s``) makes
     every pole bound and Ts of the model 1000x off without an error (session 35: the bundled
     example's time in ms under ``t_s`` identified a quasi-static K_vel of 12.4 s for 0.0124 s)."""
+    ts = _slow_step(t)
+    if ts is None:
+        return []
+    smaller = {"s": "ms", "ms": "us"}.get(unit, "ms")
+    return [f"column '{column}' steps by {ts:.6g} s ({1.0 / ts:.4g} Hz), read in {unit} as stated; "
+            f"servo traces step by 0.1-10 ms: if it is in {smaller}, give --unit {column}={smaller}"]
+
+
+def _slow_step(t):
+    """The median step of ``t`` (s) when it is ``MAX_UNSTATED_STEP_S`` or more and ``t`` has at
+    least ``MIN_CHECKED_SAMPLES`` samples, else None."""
     if t.size < MIN_CHECKED_SAMPLES:
-        return []
+        return None
     ts = float(np.median(np.diff(t)))
-    if ts < MAX_UNSTATED_STEP_S * (1 - 1e-6):
-        return []
-    return [f"column '{column}' steps by {ts:.6g} s ({1.0 / ts:.4g} Hz), read in {unit} as its name "
-            f"says; servo traces step by 0.1-10 ms: if it is in ms, give --unit {column}=ms"]
+    return ts if ts >= MAX_UNSTATED_STEP_S * (1 - 1e-6) else None    # 0.1 in a file differs by rounding
 
 
 def check_time(t, *, source, column, row_of=None, jitter_tol=0.05):
