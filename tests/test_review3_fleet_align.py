@@ -490,3 +490,31 @@ def test_missing_compiler_on_a_worker_is_retried_not_kept(built_entry, tmp_path,
     # an output of the entry's folder that cannot be written (disk full) is no input's fault either
     assert not from_inputs(IE("cannot write (No space left on device)", source=str(edir / "model.json")), edir)
     assert from_inputs(IE("not found", source=str(tmp_path / "x.csv")), edir)
+
+
+def test_trace_notes_are_kept_in_the_entry_not_printed_by_the_worker(tmp_path, capsys):
+    # session 35: the readers' notes (here: columns that state no unit, read as mm) were printed
+    # by the worker (interleaved in the console, or lost in a Dask worker's log) and not kept
+    from fdid_fmi.fleet.manifest import entry_hash, software_version
+    from fdid_fmi.fleet.runner import FleetResult, table_rows
+    from fdid_fmi.fleet.virtual import VirtualAxis, axis_trace, write_trace_csv
+    from fdid_fmi.fleet.work import EntryResult, WorkItem, run_entry
+    write_trace_csv(axis_trace(VirtualAxis("m01", "x", "deckel_maho_like"), 1, n_moves=3), "x", tmp_path / "x.csv")
+    lines = (tmp_path / "x.csv").read_text().splitlines()
+    (tmp_path / "x.csv").write_text("\n".join([lines[0].replace("x_cmd_mm", "x_cmd").replace("x_mm", "x")]
+                                              + lines[1:]) + "\n")
+    (tmp_path / "plant.toml").write_text(
+        ENTRY.replace("a.csv", "x.csv") + 'map = { t = "t_s", "x.cmd" = "x_cmd", "x.act" = "x" }\n'
+        'options = { diagnose = false, structure = "rigid", maxiter = 2 }\n')
+    spec, = load_manifest(tmp_path / "plant.toml").entries
+    version = software_version()
+    capsys.readouterr()
+    res = run_entry(WorkItem(spec, str(tmp_path / "out" / spec.dirname), entry_hash(spec, version), version))
+    assert res.ok, res.error
+    assert "note:" not in capsys.readouterr().out
+    assert res.notes == ["x.csv: columns x_cmd (mm), x (mm) state no unit and are read in these units; if one "
+                         "is in another, name it like x_um or give --unit COLUMN=UNIT"]
+    assert EntryResult.from_dict(res.to_dict()).notes == res.notes
+    fr = FleetResult(out=str(tmp_path / "out"), manifest="plant.toml", previous=None, executor="test", workers=1,
+                     entries=[res])
+    assert table_rows(fr)[0]["notes"] == res.notes

@@ -108,8 +108,10 @@ def add_trace_arguments(parser):
     return parser
 
 
-def trace_from_args(path, args):
-    """Read ``path`` with the options ``add_trace_arguments`` added.
+def trace_from_args(path, args, notes=True):
+    """Read ``path`` with the options ``add_trace_arguments`` added; ``notes``: print the
+    reader's notes (``trace.meta["notes"]``: units assumed or doubtful), as every command does
+    (the fleet keeps them in its results instead).
 
     Returns
     -------
@@ -141,7 +143,7 @@ def trace_from_args(path, args):
     else:
         kw = {"layout": layout, "axes": axes}
     trace = read_trace(path, mapping=mapping, units=units, **kw)
-    for note in trace.meta.get("notes", []):    # how it was read, where that may be wrong
+    for note in trace.meta.get("notes", []) if notes else ():   # how it was read, where that may be wrong
         print(f"note: {path}: {note}")
     if axes and trace.meta.get("layout") not in ("emps", "siso-gui", "verify-gui"):
         # elsewhere the axes come from the column names or --map: --axes would be ignored

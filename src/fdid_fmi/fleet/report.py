@@ -77,7 +77,11 @@ def fleet_report_html(fr):
                       caption="Entries that did not complete (the others did); validation_failed: every "
                               "stage ran, but the FMU's validation found problems (its outputs are kept).")
     rows = table_rows(fr)
-    rep.add_table("axes", [{k: _fmt(v) for k, v in r.items()} for r in rows],
+    noted = [{"axis": f"{r['machine']}/{r['axis']}", "note": n} for r in rows for n in r["notes"]]
+    if noted:
+        rep.add_table("trace_notes", noted, caption="How the traces were read where that may be wrong (units "
+                      "assumed or doubtful): check them before trusting the axis's figures.")
+    rep.add_table("axes", [{k: _fmt(v) for k, v in r.items() if k != "notes"} for r in rows],
                   caption="Every axis: FMU tracking-error discrepancy to the measurement (µm, worst held-out "
                           "trace), FMU vs reference simulator (mm), model free-run position error (µm), "
                           "friction step-response peak (µm), effects diagnosis kept, wall time (s).")

@@ -158,6 +158,7 @@ def table_rows(fr: FleetResult):
             "model_rms_motor_um": e.errors_um.get("motor"), "model_rms_tool_um": e.errors_um.get("tool"),
             "friction_peak_um": e.signature.friction_peak_um if e.signature else None,
             "effects_added": [x.get("kind") for x in e.effects_added],
+            "notes": list(e.notes),
             "wall_s": e.timings.total_s,
             "run": "done now" if e.key in fr.executed else "reused" if e.key in fr.skipped else "not run",
         })

@@ -150,6 +150,8 @@ class EntryResult:
     output_digests : dict     name -> sha256 of each output file as this result wrote it: a file
                               that another (killed) run has since replaced is not taken as this
                               result's
+    notes : list of str       how the traces were read where that may be wrong (units assumed or
+                              doubtful: ``trace.meta["notes"]``), each ``<file>: <note>``
     """
 
     machine: str
@@ -172,6 +174,7 @@ class EntryResult:
     finished_utc: str = ""
     reused_build: bool = False
     output_digests: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
 
     @property
     def key(self):
@@ -259,7 +262,7 @@ def _read_traces(spec: EntrySpec):
         args = identify_args(p, spec)
         if k:       # 'range' selects data of the identification trace; the held-out ones are whole
             args.range = []
-        traces.append(trace_from_args(p, args))
+        traces.append(trace_from_args(p, args, notes=False))    # kept in EntryResult.notes
     return traces
 
 
@@ -338,6 +341,7 @@ def run_entry(item: WorkItem) -> EntryResult:
         tm = StageTimes()
         t0 = time.perf_counter()
         traces = _read_traces(spec)
+        notes = [f"{Path(p).name}: {n}" for p, tr in zip(spec.traces, traces) for n in tr.meta.get("notes", [])]
         digests = [file_digest(p) for p in spec.traces]
         tm.read_s = time.perf_counter() - t0
         old = _existing(out, item.input_hash)
@@ -349,6 +353,7 @@ def run_entry(item: WorkItem) -> EntryResult:
             model = load_model(out / res.outputs["model"])
         else:
             model = _build(spec, traces, out, res, tm)
+        res.notes = notes
         if item.previous is not None:
             t0 = time.perf_counter()
             res.change = _compare(item, model, traces)
