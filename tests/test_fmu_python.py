@@ -95,14 +95,18 @@ os._exit(0)
     assert out.stdout.split() == ["refused", "4"] * 3, (out.stdout, out.stderr[-2000:])
 
 
-def test_python_backend_refuses_a_v_tilde_the_friction_solve_cannot_resolve(tmp_path):
-    # as the C FMU (test_review6_model_json): checked where the solve runs, both orders accepted
+def test_python_backend_refuses_a_v_tilde_the_friction_solve_cannot_resolve(tmp_path, capfd):
+    # as the C FMU (test_review6_model_json): checked where the solve runs; pythonfmu reports the
+    # refusal as fmi2Fatal (any exception of the slave), the C FMU as fmi2Error
     from fmpy import simulate_fmu
+    from fmpy.fmi1 import FMICallException
     from test_review6_model_json import LO, TS, two_axis
     from fdid_fmi.model import DriveModel
     fmu = str(export_fmu(DriveModel.from_dict(two_axis()), tmp_path / "p.fmu", backend="python"))
-    with pytest.raises(Exception):
-        simulate_fmu(fmu, stop_time=0.01, output_interval=TS, start_values={"y_v_tilde": 1e-20})
+    with pytest.raises(FMICallException, match="status 4"):
+        simulate_fmu(fmu, stop_time=0.01, output_interval=TS, start_values={"y_v_tilde": 1e-20},
+                     debug_logging=True)
+    assert "v_tilde must be at least 1e-13 mm/s at friction level 1, got 1e-20" in capfd.readouterr().out
     r = simulate_fmu(fmu, stop_time=0.01, output_interval=TS,
                      start_values={"x_v_tilde": 0.5 * LO, "x_friction_level": 0.1})
     assert np.isfinite(r["x_x"]).all()

@@ -138,6 +138,9 @@ def test_a_slow_stated_time_unit_and_unitless_positions_are_said(tmp_path, capsy
     bare = read_trace(_ms_csv(tmp_path / "bare.csv", "t_ms,x_cmd,x"))
     assert bare.meta["notes"] == ["columns x_cmd (mm), x (mm) state no unit and are read in these units; if "
                                   "one is in another, name it like x_um or give --unit COLUMN=UNIT"]
+    # in us there is no smaller unit to suggest (--unit t_us=ms would make it 1000x worse)
+    assert read_trace(_ms_csv(tmp_path / "us.csv", "t_us,x_cmd_mm,x_mm", step=1e6)).meta["notes"][0].endswith(
+        "fdid reads no time unit below us: convert the column")
     assert "notes" not in read_trace(_ms_csv(tmp_path / "ok.csv", "t_ms,x_cmd_mm,x_mm")).meta
     assert "notes" not in read_trace(_ms_csv(tmp_path / "ok2.csv", "t_s,x_cmd_mm,x_mm", step=0.099)).meta
     code, out, err = run_cli(capsys, "identify", tmp_path / "slow.csv", "-o", tmp_path / "m.json",

@@ -387,3 +387,14 @@ def test_diagnosis_says_when_the_held_out_trace_is_in_other_units(small):
         assert ("held_out_unlike" in kinds) == noted, (kinds, d.before)
     note = next(n for n in diagnose(model, tr, um, detectors=["coupling"]).notes if n.kind.value == "held_out_unlike")
     assert "same units" in note.text and note.statistic > 100
+
+
+def test_held_out_unlike_note_without_a_held_out_trace_names_the_record_s_parts():
+    """No --val: the held-out data are the record's second part (helper-57: the note spoke of two
+    traces). One record whose second part is in µm under the first part's mm."""
+    from fdid_fmi.diagnose.limits import held_out_unlike
+    before = {"train": {"x": {"rms_um": 1.0}}, "val": {"x": {"rms_um": 100.0}}}
+    text = held_out_unlike(before, split=True)[0].text
+    assert "the second part of the record (held out) 100 x worse than its first part" in text
+    assert "does not change machine, axis, units or mapping between its parts" in text
+    assert "both traces" in held_out_unlike(before)[0].text

@@ -226,10 +226,11 @@ def order_too_low(axis, gain, min_gain, chosen=False):
                 f"{advice}", gain, min_gain)
 
 
-def held_out_unlike(before):
+def held_out_unlike(before, split=False):
     """Notes for the axes whose held-out free-run RMS is at least ``HELD_OUT_UNLIKE`` times the
     training one (``before``: ``Diagnosis.before``, tables of the given model per trace and
-    channel), the channel with the largest ratio named."""
+    channel), the channel with the largest ratio named; ``split``: the held-out data are the
+    second part of the training record (no held-out trace was given)."""
     worst = {}
     for ch, row in before.get("val", {}).items():
         t = before.get("train", {}).get(ch, {}).get("rms_um")
@@ -237,11 +238,15 @@ def held_out_unlike(before):
             a = ch.split(".")[0]
             if row["rms_um"] / t > worst.get(a, (0.0,))[0]:
                 worst[a] = (row["rms_um"] / t, ch, row["rms_um"], t)
+    held, train, check = (("the second part of the record (held out)", "its first part",
+                           "the record does not change machine, axis, units or mapping between its parts")
+                          if split else
+                          ("the held-out trace", "the training trace",
+                           "both traces come from this machine and axis, in the same units and column mapping"))
     return [Note(NoteKind.HELD_OUT_UNLIKE, a, "diagnosis",
-                 f"axis {a}: the given model predicts the held-out trace {r:.0f} x worse than the training "
-                 f"trace ({ch}: {v:.4g} against {t:.4g} µm RMS), more than a missing effect gave on either test "
-                 f"plant ({HELD_OUT_UNLIKE:g} x): check that both traces come from this machine and axis, in "
-                 f"the same units and column mapping; the effects judged on it may be wrong",
+                 f"axis {a}: the given model predicts {held} {r:.0f} x worse than {train} ({ch}: {v:.4g} "
+                 f"against {t:.4g} µm RMS), more than a missing effect gave on either test plant "
+                 f"({HELD_OUT_UNLIKE:g} x): check that {check}; the effects judged on it may be wrong",
                  statistic=r, threshold=HELD_OUT_UNLIKE)
             for a, (r, ch, v, t) in worst.items()]
 

@@ -87,9 +87,10 @@ class FdidSlaveBase(Fmi2Slave):
 
     def _check_friction(self):
         # as the C FMU: checked where the friction solve runs, level and v_tilde set in any order
+        # (pythonfmu reports any exception as fmi2Fatal, with its message logged)
         try:
             self._st.check_friction_resolution()
-        except Exception as exc:  # noqa: BLE001 - an FMI error, not a traceback in the master
+        except Exception as exc:  # noqa: BLE001 - the message, without the InputError's prefix
             raise ValueError(str(exc)) from None
 
     def enter_initialization_mode(self):

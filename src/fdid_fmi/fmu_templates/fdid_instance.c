@@ -527,7 +527,7 @@ int fdid_do_step(FdidInstance *I, const char *fn, double t_comm, double h) {
     if (I->stop_defined && t_end > I->stop_time + grid_tolerance(t_end))
         return fdid_fail(I, "%s: the step would end at %.17g s, past the stop time %.17g s", fn, t_end,
                          I->stop_time);
-    if (!friction_resolved(I, fn)) return 0;
+    if (!friction_resolved(I, fn)) return FDID_ERROR;     /* logged there */
     for (k = 0; k < nsteps; k++) fdid_advance(&I->s);
     I->s.f.started = 1;
     /* a step that leaves the model's state non-finite failed: report it here, not first at a

@@ -462,9 +462,11 @@ def slow_time_note(t, *, column, unit):
     ts = _slow_step(t)
     if ts is None:
         return []
-    smaller = {"s": "ms", "ms": "us"}.get(unit, "ms")
+    smaller = {"s": "ms", "ms": "us"}.get(unit)
+    advice = (f"if it is in {smaller}, give --unit {column}={smaller}" if smaller else
+              "fdid reads no time unit below us: convert the column")
     return [f"column '{column}' steps by {ts:.6g} s ({1.0 / ts:.4g} Hz), read in {unit} as stated; "
-            f"servo traces step by 0.1-10 ms: if it is in {smaller}, give --unit {column}={smaller}"]
+            f"servo traces step by 0.1-10 ms: {advice}"]
 
 
 def _slow_step(t):
