@@ -398,3 +398,24 @@ def test_held_out_unlike_note_without_a_held_out_trace_names_the_record_s_parts(
     assert "the second part of the record (held out) 100 x worse than its first part" in text
     assert "does not change machine, axis, units or mapping between its parts" in text
     assert "both traces" in held_out_unlike(before)[0].text
+
+
+def test_evidence_figures_label_every_axis_with_a_unit():
+    """helper-56: the mode figure's left axis and the periodic figure had no y label, and the
+    coherence curve was not in the mode figure's legend."""
+    import re
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from fdid_fmi.diagnose.reporting import _evidence_figure
+    f = np.linspace(1, 100, 50)
+    cands = [{"kind": "mode", "plot": {"f_hz": f, "H": f, "background": f, "coherence": f / 100}},
+             {"kind": "periodic_position", "plot": {"wavelength_mm": f, "power": f, "background": f}},
+             {"kind": "delay", "plot": {"shift": np.arange(4), "objective": np.arange(1.0, 5.0)}}]
+    for c in cands:
+        fig, _ = _evidence_figure(c)
+        for ax in fig.axes:
+            assert re.search(r"\[.+\]", ax.get_ylabel()), (c["kind"], ax.get_ylabel())
+        if c["kind"] == "mode":
+            assert [t.get_text() for t in fig.axes[0].get_legend().get_texts()][-1] == "coherence"
+        plt.close(fig)

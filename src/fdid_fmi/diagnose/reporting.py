@@ -117,22 +117,27 @@ def _evidence_figure(cand):
         ax2 = ax.twinx()
         ax2.plot(f, coh, color="tab:green", lw=0.6, label="coherence")
         ax2.set_ylim(0, 1)
-        ax2.set_ylabel("coherence")
+        ax2.set_ylabel("coherence [-]")
         ax.set_xlabel("f [Hz]")
+        ax.set_ylabel("|H| [s²] (mm per mm/s²)")    # residual (mm) over commanded acceleration
+        ax.legend(*(a + b for a, b in zip(ax.get_legend_handles_labels(), ax2.get_legend_handles_labels())),
+                  fontsize=8, loc="best")       # both axes' curves in one legend
     elif kind == "periodic_position":
         lam, P, bg = (np.asarray(p[k]) for k in ("wavelength_mm", "power", "background"))
         ax.loglog(lam, P, lw=0.8, label="residual power over position")
         ax.loglog(lam, bg, lw=0.8, ls="--", label="running median")
         ax.set_xlabel("wavelength [mm]")
+        ax.set_ylabel("power [mm²]")        # |FFT of the residual|² / samples (periodic.position_spectrum)
     elif kind == "delay":
         ax.semilogy(np.asarray(p["shift"]), np.asarray(p["objective"]), "o-",
                     label="chi-square of the residual's early answer")
         ax.set_xlabel("command shift [samples]")
-        ax.set_ylabel("chi-square (training)")
+        ax.set_ylabel("chi-square [-] (training)")
     else:
         plt.close(fig)
         return None, None
-    ax.legend(fontsize=8, loc="best")
+    if ax.get_legend() is None:
+        ax.legend(fontsize=8, loc="best")
     ax.grid(alpha=0.3)
     fig.tight_layout()
     return fig, p
