@@ -82,6 +82,8 @@ def test_validate_cli_writes_json(case, capsys):
     d = json.loads(out.read_text())
     assert d["problems"] == [] and d["max_abs_diff_reference_mm"] <= 1e-9
     assert set(d["axes"]) == {"x", "y"} and d["contour"]["axes"] == ["x", "y"]
+    assert d["inputs"] == {"fmu": str(case["fmu"]), "trace": str(case["csv"]), "ranges_s": None,
+                           "model": "the model.json inside the FMU"}
     text = capsys.readouterr().out
     assert "max |FMU - reference|" in text and "contour x/y" in text
     # a wrong reference model: exit code 1

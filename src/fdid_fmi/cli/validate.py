@@ -41,7 +41,11 @@ def run(args):
         print(r.table())
         print()
     if args.json:
-        atomic_write(args.json, json.dumps(results_json(results), indent=1, allow_nan=False))
+        data = results_json(results)
+        # what was validated (helper-56: the JSON did not say which FMU, trace or reference)
+        data["inputs"] = {"fmu": str(args.fmu), "trace": str(args.trace), "ranges_s": trace.meta.get("ranges"),
+                          "model": str(args.model) if args.model else "the model.json inside the FMU"}
+        atomic_write(args.json, json.dumps(data, indent=1, allow_nan=False))
         print(f"results written to {args.json}")
     return 0 if all(r.ok for r in results) else 1
 
