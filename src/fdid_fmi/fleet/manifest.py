@@ -30,8 +30,13 @@ Options
 Identification options are those of ``fdid identify`` (``method``, ``search``, ``seed``,
 ``maxiter``, ``v_tilde``, ``no_integral_action``, ``n_real``... : the option name with ``_`` for
 ``-``; ``true`` for a flag; a list for a repeatable option) and ``range`` (data ranges of the
-identification trace). They are checked with the ``fdid identify`` parser itself, so an entry is
-identified exactly as ``fdid identify`` would. Fleet options:
+identification trace). They are checked with the ``fdid identify`` parser and its checks of the
+option combination (``check_arguments``: ``v_tilde`` with ``v_tilde_range``, an option the method
+does not read, ...) when the manifest is loaded, and the data with its ``check_data_range`` before
+the identification, so an entry is identified exactly as ``fdid identify`` would, or refused as it
+would refuse it; messages name the options as the manifest spells them (``options.v_tilde_range``,
+``map``, ``units = { t_s = "ms" }``), not as command-line flags. ``axis`` may only name the entry's
+own axis. Fleet options:
 
 ``diagnose``   (bool, default true) run ``fdid diagnose`` on the identified model (the slowest
                stage: ~2-3x the identification; switch it off for speed);
@@ -46,6 +51,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import functools
 import hashlib
 import io
 import json
@@ -67,7 +73,7 @@ _NOT_OPTIONS = {"output": "the fleet writes the model to entries/<machine>__<axi
                 "trace": "the traces are the entry's 'traces'"}
 
 __all__ = ["EntrySpec", "Manifest", "load_manifest", "parse_manifest_text", "entry_hash", "software_version",
-           "identify_args", "FLEET_OPTIONS"]
+           "identify_args", "manifest_words", "FLEET_OPTIONS"]
 
 
 @dataclass(frozen=True)
@@ -174,10 +180,11 @@ def _repeatable_options():
             if isinstance(a, (argparse._AppendAction, argparse._ExtendAction))}
 
 
+@functools.lru_cache(maxsize=1)
 def _long_options():
     """Every long option string of ``fdid identify`` (``--maxiter``, ``--map``, ...)."""
     sub = next(a for a in _identify_parser()._actions if isinstance(a, argparse._SubParsersAction))
-    return {s for a in sub.choices["identify"]._actions for s in a.option_strings if s.startswith("--")}
+    return frozenset(s for a in sub.choices["identify"]._actions for s in a.option_strings if s.startswith("--"))
 
 
 def _refuse_abbreviations(options: dict, where, entry):
@@ -309,14 +316,23 @@ def _build_entry(raw: dict, defaults: dict, base: Path, row: int, where: str) ->
         spec = EntrySpec(machine, axis, paths, mapping, units, _option_tokens(options, where, axis), diagnose,
                          det, fmi, row)
         # the fdid identify parser checks option names and values (not the files)
+        from ..cli.identify import check_arguments
         from ..cli.mapping import parse_mapping, parse_units
         try:
             args = identify_args(paths[0], spec)
         except InputError as exc:
-            raise InputError(f"entry {row}: {exc.args[0].split(': ', 1)[-1]}", source=where,
+            raise InputError(f"entry {row}: {manifest_words(exc.args[0].split(': ', 1)[-1])}", source=where,
                              column="options") from None
-        parse_mapping(args.map)
-        parse_units(args.unit)
+        try:
+            parse_mapping(args.map)
+            parse_units(args.unit)
+            # and fdid identify's checks of the option combination, before any trace is read (a
+            # v_tilde with v_tilde_range, an option the method does not read, ...): the fleet ran
+            # them silently ignored where the CLI refuses them
+            check_arguments(args)
+        except InputError as exc:
+            raise InputError(f"entry {row} ({machine}/{axis}): {manifest_words(_message(exc))}", source=where,
+                             column=manifest_words(str(exc.source or exc.column or "options"))) from None
         return spec
     except InputError as exc:
         return EntrySpec(machine or f"entry{row}", axis or f"?{row}", row=row, error=_one_line(exc))
@@ -324,6 +340,41 @@ def _build_entry(raw: dict, defaults: dict, base: Path, row: int, where: str) ->
 
 def _one_line(exc):
     return " ".join(str(exc).split())
+
+
+def _message(exc):
+    """An InputError's message without the ``source, column '...': `` prefix its text starts with."""
+    text = str(exc)
+    where = [str(exc.source)] if exc.source else []
+    where += [f"column '{exc.column}'"] if exc.column is not None else []
+    where += [f"row {exc.row}"] if exc.row is not None else []
+    prefix = ", ".join(where) + ": "
+    return text[len(prefix):] if where and text.startswith(prefix) else text
+
+
+_FLAG = re.compile(r"(?<![\w-])--([a-z][a-z0-9]*(?:-[a-z0-9]+)*)(?: ([^\s=,;:()']+)=([^\s,;()']+))?")
+
+
+def _toml_key(k):
+    return k if re.fullmatch(r"[A-Za-z0-9_-]+", k) else json.dumps(k)
+
+
+def manifest_words(text):
+    """``text`` (a message of ``fdid identify``'s checks or of the trace reader) with its command-line
+    flags spelled the way a manifest sets them: ``--v-tilde-range`` -> ``options.v_tilde_range``,
+    ``--map`` -> ``map``, ``--unit`` -> ``units``, ``--unit t_s=ms`` -> ``units = { t_s = "ms" }``.
+    Flags that are not ``fdid identify`` options (``--tolerance`` of ``fdid validate``) are kept."""
+    names = _long_options()
+
+    def word(m):
+        flag, key, value = "--" + m.group(1), m.group(2), m.group(3)
+        table = {"--map": "map", "--unit": "units"}.get(flag)
+        if table is not None:
+            return f'{table} = {{ {_toml_key(key)} = "{value}" }}' if key else table
+        if flag in names:
+            return "options." + m.group(1).replace("-", "_") + (f" {key}={value}" if key else "")
+        return m.group(0)
+    return _FLAG.sub(word, str(text))
 
 
 def _kv_tokens(text, where, column):

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..errors import FdidError, InputError
 from .compare import ChangeReport, ModelSignature, Thresholds, compare_models, model_signature
-from .manifest import EntrySpec, file_digest, identify_args
+from .manifest import EntrySpec, file_digest, identify_args, manifest_words
 
 __all__ = ["StageTimes", "ValidationFigures", "PreviousModel", "WorkItem", "EntryResult", "run_entry",
            "validate_entry_fmu", "validation_figures", "validation_failure", "ENTRY_FILE"]
@@ -267,8 +267,11 @@ def _read_traces(spec: EntrySpec):
 
 
 def _identify(spec, trace):
-    from ..cli.identify import identify_from_args
+    """``fdid identify``'s checks of the options (made at manifest load as well; again here for an
+    :class:`EntrySpec` made in Python) and its identification of the entry's axis."""
+    from ..cli.identify import check_arguments, identify_from_args
     args = identify_args(spec.traces[0], spec)
+    check_arguments(args)
     if not args.axis:
         args.axis = [spec.axis]
     if args.jobs is None:       # the fleet runs its entries in parallel already
@@ -369,8 +372,8 @@ def run_entry(item: WorkItem) -> EntryResult:
         tm.total_s = (time.perf_counter() - t_start if old is None else
                       tm.read_s + tm.identify_s + tm.export_s + tm.validate_s + tm.diagnose_s + tm.compare_s)
         res.timings = tm
-    except FdidError as exc:
-        res.status, res.error, res.deterministic = "failed", _one_line(str(exc)), from_inputs(exc, out)
+    except FdidError as exc:       # in the manifest's words (options.v_tilde, not --v-tilde)
+        res.status, res.error, res.deterministic = "failed", _one_line(manifest_words(exc)), from_inputs(exc, out)
     except Exception as exc:  # noqa: BLE001 - one failing entry must not stop the fleet
         last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
         where = f" ({Path(last.filename).name}:{last.lineno})" if last else ""
