@@ -216,10 +216,14 @@ def _option_tokens(options: dict, where, axis=None):
             raise InputError(f"option '{k}' cannot be set in a manifest ({_NOT_OPTIONS[k]})",
                              source=where, column=k)
         if k == "axis" and axis is not None:
+            # exactly the entry's axis: a list with another axis identified a two-axis model of
+            # which only the entry's axis was validated and compared
             given = [v] if isinstance(v, str) else list(v) if isinstance(v, (list, tuple)) else [v]
-            if axis not in [str(a) for a in given]:
-                raise InputError(f"option 'axis' = {v!r} does not include the entry's axis '{axis}' "
-                                 f"(leave it out: the entry identifies its own axis)", source=where, column=k)
+            if [str(a) for a in given] != [axis]:
+                what = "does not include" if axis not in [str(a) for a in given] else "names other axes than"
+                raise InputError(f"option 'axis' = {v!r} {what} the entry's axis '{axis}' (an entry identifies "
+                                 f"its own axis only; leave 'axis' out, or give each axis its own entry)",
+                                 source=where, column=k)
         flag = "--" + str(k).replace("_", "-")
         if isinstance(v, (list, tuple)) and len(v) > 1:
             if repeatable is None:
