@@ -189,21 +189,40 @@ def load_fleet_result(folder) -> FleetResult:
 
 # ----------------------------------------------------------------------------- planning
 def _previous_models(previous):
-    """key -> PreviousModel from a previous fleet folder."""
+    """key -> PreviousModel from a previous fleet folder, key -> why the previous model of that
+    key cannot be used, the folder's name and the previous software version.
+
+    The model file must be the one that fleet.json recorded (its sha256 in ``output_digests``): a
+    later run into that folder, interrupted or failed, may have replaced ``model.json`` while
+    fleet.json still holds the old signature and errors (the comparison mixed the two). Such an
+    entry (and one whose recorded model is gone) gets an error naming the file instead of a
+    comparison; a result written before the digests were recorded is taken as it is.
+    """
     if previous is None:
-        return {}, None, None
+        return {}, {}, None, None
     fr = load_fleet_result(previous)
     base = Path(previous) / "entries"
-    out = {}
+    out, problems = {}, {}
     for e in fr.entries:
         if not e.ok or e.signature is None or "model" not in e.outputs:
             continue
         mp = base / f"{e.machine}__{e.axis}" / e.outputs["model"]
-        if mp.is_file():
-            out[e.key] = PreviousModel(str(mp.resolve()), asdict(e.signature), dict(e.errors_um),
-                                       f"{Path(previous).name}/{e.key}", dict(e.spec) or None,
-                                       tuple(e.trace_digests))
-    return out, str(Path(previous)), fr.version
+        listed = f"{Path(previous) / FLEET_FILE} lists for {e.key}"
+        digest = e.output_digests.get("model")
+        if not mp.is_file():
+            if digest:
+                problems[e.key] = (f"the previous model {mp} is missing, though {listed} (removed since): "
+                                   f"compare with another --previous folder, or run without it")
+            continue
+        if digest and file_digest(mp) != digest:
+            problems[e.key] = (f"the previous model {mp} is not the one {listed} (its sha256 differs: "
+                               f"replaced since, e.g. by a later run into that folder that was interrupted "
+                               f"or failed); compare with another --previous folder, or run without it")
+            continue
+        out[e.key] = PreviousModel(str(mp.resolve()), asdict(e.signature), dict(e.errors_um),
+                                   f"{Path(previous).name}/{e.key}", dict(e.spec) or None,
+                                   tuple(e.trace_digests))
+    return out, problems, str(Path(previous)), fr.version
 
 
 def _compare_key(input_hash, prev: PreviousModel | None, thresholds: Thresholds):
@@ -333,7 +352,7 @@ def _prepare(man, out, previous, scheduler, workers, client, thresholds):
     (local pool or Dask cluster; None when nothing is to be done)."""
     if previous is not None and Path(previous).resolve() == out.resolve():
         raise InputError("--previous must be another fleet folder than --out", source=str(previous))
-    prev_models, prev_name, prev_version = _previous_models(previous)
+    prev_models, prev_problems, prev_name, prev_version = _previous_models(previous)
     workers = worker_count(workers)
 
     version = software_version()
@@ -348,6 +367,10 @@ def _prepare(man, out, previous, scheduler, workers, client, thresholds):
         if spec.error is not None:      # (its names may not be usable as a folder)
             results[spec.key] = EntryResult(spec.machine, spec.axis, "failed", h, error=spec.error,
                                             deterministic=True)
+            continue
+        if spec.key in prev_problems:   # not run: its comparison would mix two models
+            results[spec.key] = EntryResult(spec.machine, spec.axis, "failed", h, error=prev_problems[spec.key],
+                                            deterministic=True, spec=spec.to_dict())
             continue
         done = _finished(edir, h, ck)
         if done is not None:
