@@ -513,7 +513,7 @@ def test_trace_notes_are_kept_in_the_entry_not_printed_by_the_worker(tmp_path, c
     assert res.ok, res.error
     assert "note:" not in capsys.readouterr().out
     assert res.notes == ["x.csv: columns x_cmd (mm), x (mm) state no unit and are read in these units; if one "
-                         "is in another, name it like x_um or give --unit COLUMN=UNIT"]
+                         "is in another, name it like x_um or give units = { COLUMN = \"UNIT\" }"]   # review 7: manifest words
     assert EntryResult.from_dict(res.to_dict()).notes == res.notes
     fr = FleetResult(out=str(tmp_path / "out"), manifest="plant.toml", previous=None, executor="test", workers=1,
                      entries=[res])

@@ -92,6 +92,9 @@ class EntrySpec:
     fmi : int                 2 or 3
     row : int                 position in the manifest (1-based entry number / CSV line)
     error : str or None       why the entry cannot run (manifest problem), one line
+    names : tuple of str      the trace files as the manifest gives them (relative to its folder):
+                              how messages and reports name them (``night1/m01_x.csv`` and
+                              ``night2/m01_x.csv`` were both ``m01_x.csv``); see :meth:`trace_name`
     """
 
     machine: str
@@ -105,11 +108,17 @@ class EntrySpec:
     fmi: int = 2
     row: int = 0
     error: str | None = None
+    names: tuple = ()
 
     @property
     def key(self):
         """``machine/axis``: the entry's name in reports and in the previous fleet result."""
         return f"{self.machine}/{self.axis}"
+
+    def trace_name(self, k):
+        """Name of trace ``k`` in messages and reports: as the manifest gives it (the full path for an
+        entry made without one)."""
+        return self.names[k] if k < len(self.names) else str(self.traces[k])
 
     @property
     def dirname(self):
@@ -120,7 +129,7 @@ class EntrySpec:
         return {"machine": self.machine, "axis": self.axis, "traces": list(self.traces),
                 "mapping": dict(self.mapping), "units": dict(self.units), "identify": list(self.identify),
                 "diagnose": self.diagnose, "detectors": list(self.detectors) if self.detectors else None,
-                "fmi": self.fmi, "row": self.row, "error": self.error}
+                "fmi": self.fmi, "row": self.row, "error": self.error, "names": list(self.names)}
 
 
 @dataclass
@@ -318,7 +327,7 @@ def _build_entry(raw: dict, defaults: dict, base: Path, row: int, where: str) ->
         diagnose, det, fmi = _fleet_options(options, where)
         _refuse_abbreviations(options, where, f"entry {row} ({machine}/{axis})")
         spec = EntrySpec(machine, axis, paths, mapping, units, _option_tokens(options, where, axis), diagnose,
-                         det, fmi, row)
+                         det, fmi, row, names=tuple(traces))
         # the fdid identify parser checks option names and values (not the files)
         from ..cli.identify import check_arguments
         from ..cli.mapping import parse_mapping, parse_units

@@ -40,7 +40,26 @@ def summary_lines(fr):
     for e in fr.failed:
         what = "VALIDATION FAILED" if e.status == "validation_failed" else "FAILED"
         lines.append(f"  {what} {e.key}: {e.error}")
+    # the readers' notes (a unit assumed or doubtful: a time in ms under t_s makes a model 1000x
+    # off without an error) reached only fleet.json / fleet.html; one line per axis here
+    noted = [e for e in fr.entries if e.notes]
+    if noted:
+        lines.append(f"trace notes on {len(noted)} axis/axes (how a trace was read where that may be wrong; "
+                     f"check before trusting the figures):")
+        for e in noted[:MAX_NOTED_AXES]:
+            more = f" (+{len(e.notes) - 1} more note(s) in fleet.html)" if len(e.notes) > 1 else ""
+            lines.append(f"  NOTE {e.key}: {_short(e.notes[0])}{more}")
+        if len(noted) > MAX_NOTED_AXES:
+            lines.append(f"  ... and {len(noted) - MAX_NOTED_AXES} more axes with notes: see fleet.html")
     return lines
+
+
+MAX_NOTED_AXES = 20     # axes with trace notes listed in the summary (all are in fleet.html)
+MAX_NOTE = 400          # characters of a note in the summary
+
+
+def _short(text):
+    return text if len(text) <= MAX_NOTE else text[:MAX_NOTE - 3] + "..."
 
 
 def _fmt(v):

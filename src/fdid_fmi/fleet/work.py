@@ -7,7 +7,9 @@ returns an :class:`EntryResult`. ``entry.json`` is written last: its presence wi
 input hash and the sha256 of every output it lists is what marks the work as done, so a worker
 killed half-way (also one rebuilding the entry for other inputs) leaves no result that a rerun
 could mistake for a finished one. A failure is kept (not retried) only when it follows from the
-inputs (:func:`from_inputs`): a compiler missing on a worker or a full disk is retried.
+inputs (:func:`from_inputs`): a compiler missing on a worker or a full disk is retried. A failed
+entry lists no outputs: what it wrote before failing (a model and FMU never validated) is removed.
+The cheap checks of the data (scale, the held-out traces' sample time) come before identification.
 
 Output folder ``OUT/entries/<machine>__<axis>/``:
 
@@ -132,7 +134,7 @@ class EntryResult:
     error : str or None       the one-line reason of a failure
     deterministic : bool      the failure follows from the inputs (bad file, option, data): a rerun
                               with the same inputs skips it; other failures are retried
-    outputs : dict            name -> file path relative to the entry folder
+    outputs : dict            name -> file path relative to the entry folder (none when ``failed``)
     timings : StageTimes
     signature : ModelSignature or None
     errors_um : dict          channel (``motor``, ``tool``) -> RMS of the model's free-run position
@@ -199,21 +201,26 @@ class EntryResult:
 
 
 # ----------------------------------------------------------------------------- stages
-def validate_entry_fmu(fmu_path, trace, model, axis) -> ValidationFigures:
+def validate_entry_fmu(fmu_path, trace, model, axis, name=None) -> ValidationFigures:
     """THE one call into FMU validation (``fdid validate``'s engine); adapt here if its API changes.
 
     Returns the FMU's tracking-error discrepancy to the measurement on ``axis`` [µm], its largest
-    difference from the reference simulator [mm] and the problems found.
+    difference from the reference simulator [mm] and the problems found; ``name``: the trace's name
+    in them (default its file path).
     """
     from ..fmu.validate import validate_fmu
-    return validation_figures(validate_fmu(fmu_path, trace, model=model), trace, axis)
+    return validation_figures(validate_fmu(fmu_path, trace, model=model), trace, axis, name)
 
 
-def validation_figures(res, trace, axis) -> ValidationFigures:
+def validation_figures(res, trace, axis, name=None) -> ValidationFigures:
     """The fleet's figures of a :class:`~fdid_fmi.fmu.validate.ValidationResult` on ``trace``, with
-    its verdict (``res.ok``, the one ``fdid validate`` gives as its exit code)."""
+    its verdict (``res.ok``, the one ``fdid validate`` gives as its exit code). ``name``: the
+    trace's name in them; the fleet gives the path as the manifest gives it
+    (:meth:`EntrySpec.trace_name`: the file name alone named two held-out traces
+    ``night1/m01_x.csv`` and ``night2/m01_x.csv`` alike); default the file name."""
     d = res.axes.get(axis, {})
-    return ValidationFigures(trace=Path(str(trace.source)).name, rms_um=float(d.get("rms_um", float("nan"))),
+    return ValidationFigures(trace=Path(str(trace.source)).name if name is None else str(name),
+                             rms_um=float(d.get("rms_um", float("nan"))),
                              max_um=float(d.get("max_um", float("nan"))),
                              max_abs_diff_reference_mm=float(res.max_abs_diff_reference_mm),
                              problems=list(res.problems), passed=bool(res.ok))
@@ -255,15 +262,57 @@ def channel_errors(model, traces, axis):
     return errors, residuals
 
 
-def _read_traces(spec: EntrySpec):
+def _read_traces(spec: EntrySpec, notes=None):
+    """The entry's traces, read as ``fdid identify`` reads them; the readers' notes (units assumed
+    or doubtful) are appended to ``notes`` as each trace is read (``<trace name>: <note>``, with
+    the advice in the manifest's words), so that those of the traces read before a failing one
+    are kept."""
+    from ..cli import naming
     from ..cli.mapping import trace_from_args
     traces = []
     for k, p in enumerate(spec.traces):
         args = identify_args(p, spec)
         if k:       # 'range' selects data of the identification trace; the held-out ones are whole
             args.range = []
-        traces.append(trace_from_args(p, args, notes=False))    # kept in EntryResult.notes
+        with naming(spec.trace_name(k)):
+            tr = trace_from_args(p, args, notes=False)      # kept in EntryResult.notes
+        if notes is not None:
+            notes += [manifest_words(f"{spec.trace_name(k)}: {n}") for n in tr.meta.get("notes", [])]
+        traces.append(tr)
     return traces
+
+
+def _check_traces(spec: EntrySpec, traces):
+    """The cheap checks of the data, before identification: the identification trace has the
+    entry's axis with 'cmd' and 'act'; every trace's positions are of a usable scale (``fdid
+    identify``'s :func:`~fdid_fmi.cli.identify.check_data_range`: positions x1e10 were identified
+    and then failed validation with a misleading message); each held-out trace has the axis's
+    command and the identification trace's sample time (the model's, which the FMU runs at: a
+    held-out trace at 2 ms against 1 ms failed only after identification and export)."""
+    from ..cli.identify import check_data_range
+    ax, train = spec.axis, traces[0]
+    if ax not in train.axes or not (train.has(ax, "cmd") and train.has(ax, "act")):
+        raise InputError(f"the trace has no axis '{ax}' with 'cmd' and 'act' channels "
+                         f"(axes found: {train.axes}); check the entry's map", source=spec.trace_name(0))
+    for k, tr in enumerate(traces):
+        name = spec.trace_name(k)
+        if k and not tr.has(ax, "cmd"):
+            raise InputError(f"this held-out trace has no commanded position of axis '{ax}' (axes found: "
+                             f"{tr.axes}); the FMU cannot be validated on it: check the entry's map",
+                             source=name)
+        try:
+            check_data_range(tr, [ax])
+        except InputError as exc:
+            raise InputError(_message(exc), source=name, column=exc.column, row=exc.row) from None
+        if k and abs(tr.Ts - train.Ts) > 1e-9 * train.Ts:
+            raise InputError(f"this held-out trace is sampled at {tr.Ts:g} s, the identification trace "
+                             f"{spec.trace_name(0)} (and so the model and its FMU) at {train.Ts:g} s; give "
+                             f"held-out traces sampled alike", source=name, column=tr.meta.get("time_column"))
+
+
+def _message(exc):
+    from .manifest import _message as message
+    return message(exc)
 
 
 def _identify(spec, trace):
@@ -276,9 +325,6 @@ def _identify(spec, trace):
         args.axis = [spec.axis]
     if args.jobs is None:       # the fleet runs its entries in parallel already
         args.jobs = 1
-    if spec.axis not in trace.axes or not (trace.has(spec.axis, "cmd") and trace.has(spec.axis, "act")):
-        raise InputError(f"the trace has no axis '{spec.axis}' with 'cmd' and 'act' channels "
-                         f"(axes found: {trace.axes}); check the entry's map", source=spec.traces[0])
     return identify_from_args(trace, args, progress=False, notes=False)
 
 
@@ -343,8 +389,9 @@ def run_entry(item: WorkItem) -> EntryResult:
         out.mkdir(parents=True, exist_ok=True)
         tm = StageTimes()
         t0 = time.perf_counter()
-        traces = _read_traces(spec)
-        notes = [f"{Path(p).name}: {n}" for p, tr in zip(spec.traces, traces) for n in tr.meta.get("notes", [])]
+        notes = res.notes = []      # filled while reading: a failing entry keeps its notes
+        traces = _read_traces(spec, notes)
+        _check_traces(spec, traces)
         digests = [file_digest(p) for p in spec.traces]
         tm.read_s = time.perf_counter() - t0
         old = _existing(out, item.input_hash)
@@ -382,6 +429,7 @@ def run_entry(item: WorkItem) -> EntryResult:
     built = res.status in ("ok", "validation_failed")     # every stage ran: outputs and a report
     if res.status == "failed":
         res.timings.total_s = time.perf_counter() - t_start
+        _drop_outputs(out, res)
         # a failure may come from the comparison (the previous model): it holds for this previous
         # result and these thresholds only
         res.compare_key = item.compare_key
@@ -398,6 +446,21 @@ def run_entry(item: WorkItem) -> EntryResult:
 
 def _one_line(text):
     return " ".join(str(text).split())[:500]
+
+
+def _drop_outputs(out: Path, res: EntryResult):
+    """A failed entry has no outputs: the files it wrote before failing (a model and FMU never
+    validated, when the failure came after identification and export) are removed and not listed
+    (they were listed as the entry's outputs in fleet.json). The entry's other files are not
+    touched; the next run builds the entry again (only a success is reused)."""
+    for f in res.outputs.values():
+        p = out / f
+        if p.parent == out:         # an output's name, never a path elsewhere
+            try:
+                p.unlink(missing_ok=True)
+            except OSError:
+                pass
+    res.outputs, res.output_digests = {}, {}
 
 
 def from_inputs(exc, entry_dir) -> bool:
@@ -420,12 +483,14 @@ def from_inputs(exc, entry_dir) -> bool:
 
 def _build(spec, traces, out, res, tm):
     """Identify, export, validate and (optionally) diagnose; fills ``res``; returns the model."""
+    from ..cli import naming
     from ..fmu import export_fmu
     from ..model import DriveModel
     train = traces[0]
     held = traces[1:] or traces[:1]
     t0 = time.perf_counter()
-    model = _identify(spec, train)
+    with naming(spec.trace_name(0)):     # as fdid identify names its trace
+        model = _identify(spec, train)
     if not isinstance(model, DriveModel):
         raise InputError("the fleet needs a state-space model (method pole-search or mimo), "
                          "not a quasi-static one", column="method")
@@ -439,7 +504,10 @@ def _build(spec, traces, out, res, tm):
     res.outputs["fmu"] = fmu.name
 
     t0 = time.perf_counter()
-    res.validation = [validate_entry_fmu(fmu, tr, model, spec.axis) for tr in held]
+    res.validation = []
+    for k, tr in enumerate(held, start=1 if len(traces) > 1 else 0):
+        with naming(spec.trace_name(k)):
+            res.validation.append(validate_entry_fmu(fmu, tr, model, spec.axis, spec.trace_name(k)))
     _save_json(out / "validation.json", [asdict(v) for v in res.validation])
     tm.validate_s = time.perf_counter() - t0
     res.outputs["validation"] = "validation.json"
@@ -493,6 +561,7 @@ def _old_on_old(prev: PreviousModel, old, axis):
         sp["traces"] = tuple(sp["traces"])
         sp["identify"] = tuple(sp["identify"])
         sp["detectors"] = tuple(sp["detectors"]) if sp.get("detectors") else None
+        sp["names"] = tuple(sp.get("names") or ())
         errors, _ = channel_errors(old, _read_traces(EntrySpec(**sp)), axis)
         return errors
     return dict(prev.errors_um)
