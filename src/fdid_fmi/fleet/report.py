@@ -66,7 +66,7 @@ def _fmt(v):
     if v is None:
         return "–"
     if isinstance(v, float):
-        return f"{v:.3g}"
+        return "not computed" if v != v else f"{v:.3g}"      # NaN: runner._worst's "not computed"
     if isinstance(v, list):
         return ", ".join(map(str, v)) or "–"
     return str(v)

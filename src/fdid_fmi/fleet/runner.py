@@ -136,9 +136,13 @@ class FleetResult:
 
 
 def _worst(values):
-    """Largest of ``values`` with a NaN (not computed) counting as the worst, None when empty:
-    ``max`` let a NaN vanish when it came after a number."""
-    vals = [float("inf") if v is None or v != v else float(v) for v in values]
+    """Largest of ``values``, NaN (not computed) when one of them is None or NaN, None when there
+    are none: ``max`` let a NaN vanish when it came after a number; then a figure not computed
+    counted as ``inf`` and fleet.html showed "inf" (a diverged FMU's figure) where fleet.json has
+    null. A genuine ``inf`` stays ``inf``."""
+    vals = [float("nan") if v is None or v != v else float(v) for v in values]
+    if any(v != v for v in vals):
+        return float("nan")
     return max(vals, default=None)
 
 

@@ -582,9 +582,11 @@ def _entry_report(res: EntryResult, out: Path):
     sig = res.signature
     lines = [f"Status: {res.status}." + (f" {res.error}" if res.error else "")]
     if sig is not None:
+        # a model without friction has neither figure (None): "none", not 0
+        peak = "none" if sig.friction_peak_um is None else f"{sig.friction_peak_um:.3g} µm"
+        vt = "none" if sig.v_tilde_mm_s is None else f"{sig.v_tilde_mm_s:.3g} mm/s"
         lines.append("Poles [Hz]: " + ", ".join(f"{re:.3g}{im:+.3g}j" for re, im in sig.poles_hz)
-                     + f"; friction step peak {sig.friction_peak_um or 0:.3g} µm; v_tilde "
-                     f"{sig.v_tilde_mm_s or 0:.3g} mm/s; effects {sig.effects or 'none'}.")
+                     + f"; friction step peak {peak}; v_tilde {vt}; effects {sig.effects or 'none'}.")
     if res.change is not None:
         lines.append(f"Against {res.change.previous}: {res.change.summary}.")
     rep.add_text("\n\n".join(lines), heading="Summary")
