@@ -73,6 +73,9 @@ def test_feedforward_axis_gets_the_current_loop_pole():
     ch = StructureChoice.from_dict(m.identification["structure_choice"])
     assert ch.chosen == "r2c1" and ch.same_sample in ("quadratic", "cubic")     # measured: quadratic
     assert len(ch.candidates) >= 9 and sum(c.chosen for c in ch.candidates) == 1
+    # every fit's rounding sensitivity is measured; the kept one's is 0.038 of its RMS (measured)
+    assert all(c.sensitivity_mm is not None for c in ch.candidates if np.isfinite(c.free_run_rms_mm))
+    assert next(c for c in ch.candidates if c.chosen).determined
     assert m.method == "pole-search" and m.n_states > 0
     fl, qs = identify_full_ls(train, "x"), identify_quasi_static(train, ["x"])
     for name, v in {"circle": simulate_machine(cfg, tj.circle(Ts=cfg.Ts), seed=3),
@@ -131,3 +134,26 @@ def test_the_kept_structure_is_refitted_in_its_other_forms():
     at_hand = [fits[f] for f in CHOSEN_FROM if f != worst]
     taken, again = cs.other_forms(fits[worst][0], ranges, "x", opts, fitted=at_hand)
     assert all(any(a is b for b in at_hand) for a in again) and taken is fits[best]
+
+
+def test_a_structure_decided_by_rounding_is_flagged_and_noted():
+    """Session 35 (helper-55): EMPS's default r2c2 cubic moved 2.41 µm under 1e-12 mm of command
+    noise against its 1.46 µm RMS, and its FMU failed fdid validate at 5.9e-8 mm without a word
+    from identify. Each candidate's sensitivity is recorded, flagged above 1 % of its RMS, and a
+    kept structure that is flagged gets a note; validate's message says what it means."""
+    from fdid_fmi.identify.choose_structure import CandidateScore, SENSITIVITY_MAX
+    from fdid_fmi.fmu.validate import _reference_problem
+    rigid = CandidateScore("rigid-noI", 8, "cubic", 2.715e-3, 1.0, sensitivity_mm=1e-9)
+    r2c2 = CandidateScore("r2c2", 17, "cubic", 1.462e-3, 1.0, sensitivity_mm=2.41e-3, chosen=True)
+    edge = CandidateScore("r2c1", 11, "cubic", 1e-3, 1.0, sensitivity_mm=SENSITIVITY_MAX * 1e-3)
+    old = CandidateScore("r1c2", 14, "cubic", 1e-3, 1.0)           # a record before session 35
+    assert rigid.determined and edge.determined and old.determined and not r2c2.determined
+    assert CandidateScore.from_dict(r2c2.to_dict()).sensitivity_mm == 2.41e-3
+    lines = StructureChoice("x", "r2c2", "cubic", [rigid, r2c2, edge, old], 0.05, 1, 1.0).table()
+    assert sum("not determined: moves 2.41 µm" in ln for ln in lines) == 1
+    assert lines[-1].startswith("  note: the kept structure's free run moves by up to 2.41 µm")
+    r2c2.chosen, rigid.chosen = False, True
+    assert "note:" not in StructureChoice("x", "rigid-noI", "cubic", [rigid, r2c2], 0.05, 1, 1.0).table()[-1]
+    text = _reference_problem(5.91e-8, 1e-9, 2.41e-3)
+    assert "determined only to 0.00241 mm here, 4.08e+04x this difference" in text and "'not determined'" in text
+    assert "'not determined'" not in _reference_problem(4.6e-9, 1e-9, 5.3e-9)

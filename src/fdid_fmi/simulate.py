@@ -188,6 +188,27 @@ def simulate(model, trace_or_commands, Ts=None, start_velocity=None, params=None
     return _run(compiled, cmds, exts, t, start_velocity or {}, params)
 
 
+def rounding_sensitivity(model, trace, start="auto", noise_mm=1e-12, seed=0):
+    """max |simulate(commands) - simulate(commands + noise)| over the trace and the model's axes
+    (mm, position): how far the prediction moves when every command carries ``noise_mm`` of
+    (seeded) Gaussian noise, the size of rounding. Friction stick/slip decisions can amplify it:
+    an FMU run by a master that rounds its inputs otherwise then cannot agree with this simulator
+    (``fdid validate``), and a structure whose prediction is not determined to within its own error
+    is not chosen (``identify.choose_structure``)."""
+    from .trace import Channel
+    rng = np.random.default_rng(seed)
+    chans = dict(trace.channels)
+    for a in model.axes:
+        name = trace.roles[a]["cmd"]
+        c = trace.channels[name]
+        chans[name] = Channel(c.name, c.unit, c.data + noise_mm * rng.standard_normal(c.data.size))
+    pert = Trace(t=trace.t, channels=chans, roles=trace.roles, source=trace.source, meta=dict(trace.meta),
+                 jitter_tol=trace.jitter_tol)
+    a = simulate(model, trace, start=start)
+    b = simulate(model, pert, start=start)
+    return float(max(np.max(np.abs(a.axes[x]["position"] - b.axes[x]["position"])) for x in model.axes))
+
+
 def _trim(res, R):
     return SimResult(t=res.t[R:], y=res.y[R:], u=res.u[R:],
                      axes={a: {k: v[R:] for k, v in d.items()} for a, d in res.axes.items()},
