@@ -26,12 +26,17 @@ def emps_model(shared_data, tmp_path_factory):
     return path
 
 
-def test_emps_pulses_channel_found_and_added(emps_model, shared_data, tmp_path):
+def test_emps_pulses_channel_found_and_added(emps_model, shared_data, tmp_path, monkeypatch):
+    import tempfile
     pulses = shared_data / "emps" / "DATA_EMPS_PULSES.mat"
     out_json, out_html, out_model = tmp_path / "d.json", tmp_path / "d.html", tmp_path / "plus.json"
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))     # where --fmu's FMUs are exported
     rc = main(["diagnose", str(emps_model), "--train", str(pulses), "--json", str(out_json),
                "--report", str(out_html), "-o", str(out_model), "--fmu"])
     assert rc == 0
+    assert not list(scratch.iterdir())      # the FMUs' folder is removed (one was left per run)
     d = json.loads(out_json.read_text())
     assert [(e["kind"], e["channel"]) for e in d["effects_added"]] == [("extra_input", "pulses_N")]
     before, after = d["before"]["val"]["x"], d["after"]["val"]["x"]

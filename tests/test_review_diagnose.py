@@ -398,6 +398,9 @@ def test_held_out_unlike_note_without_a_held_out_trace_names_the_record_s_parts(
     assert "the second part of the record (held out) 100 x worse than its first part" in text
     assert "does not change machine, axis, units or mapping between its parts" in text
     assert "both traces" in held_out_unlike(before)[0].text
+    # a channel only the held-out trace has (EMPS: DATA_EMPS_PULSES's pulses_N, 35 x): named
+    text = held_out_unlike(before, unseen=["pulses_N"])[0].text
+    assert "its channels ['pulses_N'], which the training data lack, may carry an input" in text
 
 
 def test_evidence_figures_label_every_axis_with_a_unit():

@@ -183,6 +183,10 @@ def run(args):
             print(line)
     if fmu and "error" in fmu:
         print(f"  FMU check: {fmu['error']}")
+    fmu_problems = [f"{label} model: {pr}" for label in ("before", "after")
+                    for pr in (fmu or {}).get(label, {}).get("problems", [])]
+    for pr in fmu_problems:     # as fdid validate says them (helper-55: the FMU RMS alone read as agreement)
+        print(f"  FMU check, {pr}")
     for note in diag.notes:
         print(f"note ({note.kind.value}): {note.text}")
     if args.output:
@@ -198,7 +202,8 @@ def run(args):
         html = diagnosis_report(diag, fmu=fmu, model_source=args.model)
         _write_report(html, args.report)
         print(f"report written to {args.report}")
-    return 0
+    # as fdid validate: exit 1 when the FMU check found problems or could not be made
+    return 1 if fmu and ("error" in fmu or fmu_problems) else 0
 
 
 def _write_report(report, path):

@@ -34,7 +34,8 @@ def register(sub):
                        description="Identify a feed-drive model from a measured trace and save it as JSON.")
     p.add_argument("trace", help="trace file (.csv/.txt, .mat, SINUMERIK .xml)")
     p.add_argument("--method", choices=METHODS, default="pole-search")
-    p.add_argument("-o", "--output", default="model.json", help="model JSON to write")
+    p.add_argument("-o", "--output", default="model.json",
+                   help="model JSON to write (default: model.json; an existing file is replaced)")
     p.add_argument("--axis", action="append", default=None,
                    help="axis to identify (repeatable; default: every axis with cmd and act)")
     s = p.add_argument_group("pole search")

@@ -19,7 +19,8 @@ def register(sub):
                                    "t_s,<axis>_x_pred_mm,<axis>_e_pred_mm as CSV.")
     p.add_argument("model", help="model JSON written by fdid identify")
     p.add_argument("trace", help="trace with the commanded positions")
-    p.add_argument("-o", "--output", default="prediction.csv", help="CSV to write")
+    p.add_argument("-o", "--output", default="prediction.csv",
+                   help="CSV to write (default: prediction.csv; an existing file is replaced)")
     p.add_argument("--at-rest", action="store_true",
                    help="start at rest even if the record starts in motion")
     add_trace_arguments(p)

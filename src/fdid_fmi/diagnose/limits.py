@@ -226,11 +226,13 @@ def order_too_low(axis, gain, min_gain, chosen=False):
                 f"{advice}", gain, min_gain)
 
 
-def held_out_unlike(before, split=False):
+def held_out_unlike(before, split=False, unseen=()):
     """Notes for the axes whose held-out free-run RMS is at least ``HELD_OUT_UNLIKE`` times the
     training one (``before``: ``Diagnosis.before``, tables of the given model per trace and
     channel), the channel with the largest ratio named; ``split``: the held-out data are the
-    second part of the training record (no held-out trace was given)."""
+    second part of the training record (no held-out trace was given); ``unseen``: channels only
+    the held-out data have (an input the model does not know may be what moves them: EMPS's
+    pulses_N, 35 x, helper-55)."""
     worst = {}
     for ch, row in before.get("val", {}).items():
         t = before.get("train", {}).get(ch, {}).get("rms_um")
@@ -246,7 +248,10 @@ def held_out_unlike(before, split=False):
     return [Note(NoteKind.HELD_OUT_UNLIKE, a, "diagnosis",
                  f"axis {a}: the given model predicts {held} {r:.0f} x worse than {train} ({ch}: {v:.4g} "
                  f"against {t:.4g} µm RMS), more than a missing effect gave on either test plant "
-                 f"({HELD_OUT_UNLIKE:g} x): check that {check}; the effects judged on it may be wrong",
+                 f"({HELD_OUT_UNLIKE:g} x): "
+                 + (f"its channels {list(unseen)}, which the training data lack, may carry an input the model "
+                    f"does not know (the coupling detector looks for it), else check that {check}" if unseen
+                    else f"check that {check}; the effects judged on it may be wrong"),
                  statistic=r, threshold=HELD_OUT_UNLIKE)
             for a, (r, ch, v, t) in worst.items()]
 

@@ -703,7 +703,8 @@ def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0
     play = {a: current.inputs[i].params["width_mm"] for a in model.axes
             if (i := play_input(current, a)) is not None}
     kept = diag.effects_added + [e for e in (model.effects or []) if e not in diag.effects_added]
-    diag.notes = (held_out_unlike(diag.before, split=bool(split)) + order_notes + unchecked
+    unseen = sorted(set(val.extra_channels) - set(train.extra_channels))
+    diag.notes = (held_out_unlike(diag.before, split=bool(split), unseen=unseen) + order_notes + unchecked
                   + data_limits(model.axes, tool_axes, conc, kept, lost, play))
     diag.wall_time_s = time.perf_counter() - t0
     return diag

@@ -22,21 +22,30 @@ def fmu_check(diag, workdir=None, fmi_version=2):
     Returns
     -------
     dict ``{"before"|"after": {"train"|"val": {axis: {"rms_um", "max_um"}}, "max_abs_diff_reference_mm":
-    float}}``, or ``{"error": message}`` when FMU export / fmpy are not available.
+    float, "problems": [...], "fmu": file name}}``, or ``{"error": message}`` when FMU export / fmpy
+    are not available. ``workdir``: where the FMUs are written (kept); default a temporary folder,
+    removed before returning.
     """
+    if workdir is None:     # a temporary folder, removed after (one was left per run: helper-55)
+        with tempfile.TemporaryDirectory(prefix="fdid_diagnose_") as wd:
+            return _fmu_check(diag, Path(wd), fmi_version)
+    wd = Path(workdir)
+    wd.mkdir(parents=True, exist_ok=True)
+    return _fmu_check(diag, wd, fmi_version)
+
+
+def _fmu_check(diag, wd, fmi_version):
     try:
         from ..fmu import export_fmu, validate_fmu
     except ImportError as exc:  # pragma: no cover - depends on the FMU package
         return {"error": f"FMU support not available: {exc}"}
-    wd = Path(workdir or tempfile.mkdtemp(prefix="fdid_diagnose_"))
-    wd.mkdir(parents=True, exist_ok=True)
     out = {}
     for label, model in (("before", diag.model), ("after", diag.final)):
         try:
             path = export_fmu(model, wd / f"model_{label}.fmu", fmi_version=fmi_version)
         except Exception as exc:   # report, do not hide: the model table stands without it
             return {"error": f"FMU export of the {label} model failed: {exc}"}
-        d = {"fmu": str(path), "max_abs_diff_reference_mm": 0.0}
+        d = {"fmu": path.name, "max_abs_diff_reference_mm": 0.0}
         for tname, tr in (("train", diag.train), ("val", diag.val)):
             res = validate_fmu(path, tr, model=model)
             d[tname] = res.axes
