@@ -262,3 +262,22 @@ def test_no_common_motion_within_max_offset_names_the_bound():
         coarse_offset(t, env, tau, unrelated)
     assert "no common motion" in str(ei.value)
     assert "--max-offset" not in str(ei.value)
+
+
+def test_identify_summary_covers_the_ranges_given(diag_files, capsys):
+    """helper-55: with --range the free-run table summarised the whole record without a word;
+    it covers the ranges, each run from its own start as fdid simulate runs them."""
+    import re
+    from fdid_fmi.io import read_trace
+    d = diag_files
+    out = d / "q.json"
+    code = _exit_code(["identify", d / "train.csv", "--method", "quasi-static", "--range", "0.2:1.4,1.6:2.8",
+                       "-o", out])
+    text = capsys.readouterr().out
+    assert code == 0, text
+    assert "free run on " in text and "ranges 0.2:1.4, 1.6:2.8 s:" in text
+    row = next(ln for ln in text.splitlines() if ln.strip().startswith("x "))
+    e_rms = float(re.split(r"\s+", row.strip())[1])
+    pieces = read_trace(d / "train.csv").select([(0.2, 1.4), (1.6, 2.8)])
+    e = np.concatenate([p.cmd("x") - p.act("x") for p in pieces])
+    assert e_rms == pytest.approx(np.sqrt(np.mean(e ** 2)) * 1e3, abs=1e-3)

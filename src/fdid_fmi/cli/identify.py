@@ -394,14 +394,19 @@ def summary(model, trace=None):
         for ax, g in model.gains.items():
             lines.append(f"{ax}: K_vel {g['K_vel']:.6g} s, K_acc {g['K_acc']:.6g} s^2, K_jerk {g['K_jerk']:.6g} s^3")
     if trace is not None:
-        sim = simulate(model, trace)
-        lines.append(f"free run on {trace.source}:")
+        # over the --range pieces when given (each run from its own start, as simulate runs them;
+        # helper-55: the whole record was summarised without a word)
+        ranges = trace.meta.get("ranges")
+        pieces = trace.select(ranges)
+        sims = [simulate(model, tr) for tr in pieces]
+        where = f", ranges {', '.join(f'{a:g}:{b:g}' for a, b in ranges)} s" if ranges else ""
+        lines.append(f"free run on {trace.source}{where}:")
         lines.append(f"  {'axis':<5} {'e RMS um':>10} {'e MAX um':>10} {'pred-err RMS um':>16} "
                      f"{'pred-err MAX um':>16} {'% of RMS':>9}")
         for ax in model.axes:
             side = model.position_side(ax) if isinstance(model, DriveModel) else "motor"
-            e = trace.cmd(ax) - measured_position(trace, ax, side)
-            tb = prediction_table(e, sim.axes[ax]["error"])
+            e = np.concatenate([tr.cmd(ax) - measured_position(tr, ax, side) for tr in pieces])
+            tb = prediction_table(e, np.concatenate([s.axes[ax]["error"] for s in sims]))
             pct = tb["discrepancy_pct_of_rms"]     # undefined ('nan') when the measured error is 0
             pct = f"{pct:9.3f}" if math.isfinite(pct) else f"{'-':>9}"
             lines.append(f"  {ax + (' (tool)' if side == 'tool' else ''):<5} {tb['actual']['rms_um']:10.3f} {tb['actual']['max_um']:10.3f} "
