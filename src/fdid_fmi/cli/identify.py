@@ -302,6 +302,11 @@ def identify_from_args(trace, args, progress=True, notes=True):
     from .. import identify as idf
     pieces = trace.select(trace.meta.get("ranges"))
     axes = args.axis or [a for a in trace.axes if trace.has(a, "cmd") and trace.has(a, "act")]
+    if not axes and trace.meta.get("layout") == "sinumerik-sat":    # --map does not apply to it
+        raise InputError("this SINUMERIK trace is a speed-loop frequency-response measurement (channels "
+                         f"{sorted(trace.channels)}), with no commanded or actual positions to identify a "
+                         "drive from: read it with fdid_fmi.io.speed_loop_frf, and record positions with "
+                         "the servo trace for fdid identify", source=trace.source)
     if not axes:
         raise InputError("the trace has no axis with both 'cmd' and 'act' channels; use --map",
                          source=trace.source)
