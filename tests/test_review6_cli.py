@@ -281,3 +281,16 @@ def test_identify_summary_covers_the_ranges_given(diag_files, capsys):
     pieces = read_trace(d / "train.csv").select([(0.2, 1.4), (1.6, 2.8)])
     e = np.concatenate([p.cmd("x") - p.act("x") for p in pieces])
     assert e_rms == pytest.approx(np.sqrt(np.mean(e ** 2)) * 1e3, abs=1e-3)
+
+
+def test_identify_notes_a_position_that_does_not_follow_its_command(diag_files, tmp_path, capsys):
+    """helper-55: a command in m beside a position in mm (tracking error 99 % of the motion) was
+    identified without a word. The same file with matching units gets no note."""
+    d = diag_files
+    text = (d / "train.csv").read_text().replace("t_s,x_cmd_mm,x_mm", "t_s,x_cmd_m,x_mm")
+    (tmp_path / "m_mm.csv").write_text(text)
+    code = _exit_code(["identify", tmp_path / "m_mm.csv", "--method", "quasi-static", "-o", tmp_path / "q.json"])
+    out = capsys.readouterr().out
+    assert code == 0 and "note: " in out and "of the commanded motion's" in out and "x_cmd_m and x_mm" in out
+    code = _exit_code(["identify", d / "train.csv", "--method", "quasi-static", "-o", tmp_path / "q2.json"])
+    assert code == 0 and "commanded motion" not in capsys.readouterr().out
