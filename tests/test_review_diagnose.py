@@ -342,8 +342,8 @@ def test_validate_says_what_explains_a_missed_target():
     maximum-only floor was tried in session 34 and dropped: a float32 FMU, 9.5e-7 mm off, passed
     under the demo model's 6.4e-6 mm); or the FMU does not compute the reference model."""
     from fdid_fmi.fmu.validate import _reference_problem
-    assert _reference_problem(4.6e-9, 1e-9, 5.33e-9).endswith("on this trace): if that is the cause, "
-                                                            "--tolerance 5.6e-09 accepts it")
+    assert _reference_problem(4.6e-9, 1e-9, 5.33e-9).endswith("determined only to 5.33e-09 mm here; if that "
+                                                            "is the cause, --tolerance 5.6e-09 accepts it")
     assert "the FMU does not compute the reference model" in _reference_problem(1e-3, 1e-9, 1e-5)
     assert "carries another model (its resources/model.json differs from the reference in B)" in \
         _reference_problem(4.6e-9, 1e-9, 5.33e-9, ["B"])

@@ -278,8 +278,22 @@ class _LocalPool:
         from concurrent.futures import as_completed
         return as_completed(futures)
 
-    def close(self):
-        self.pool.shutdown(wait=True, cancel_futures=True)
+    def close(self, interrupted=False):
+        """Shut the pool down; ``interrupted`` (Ctrl-C): without waiting, its workers terminated.
+        A plain shutdown waits for the entries already handed to the workers (the running ones and
+        one queued more, which a worker takes after its Ctrl-C): helper-56 saw an entry that had
+        not started run in full after the interrupt. A terminated worker's outputs are atomic; its
+        temporary files are removed by the runner."""
+        if not interrupted:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+            return
+        # Python 3.11 has no public way to stop the workers (3.14: terminate_workers)
+        procs = list((getattr(self.pool, "_processes", None) or {}).values())
+        self.pool.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:
+            proc.terminate()
+        for proc in procs:
+            proc.join(timeout=10)
 
 
 class _Dask:
@@ -302,16 +316,25 @@ class _Dask:
             raise
         self.workers = len(info.get("workers", {}))
         self.name = f"dask {client.scheduler.address} ({self.workers} workers)"
+        self.futures = []
 
     def submit(self, fn, item):
-        return self.client.submit(fn, item, pure=False,
-                                  key=f"fdid-fleet-{item.spec.dirname}-{item.input_hash[:12]}-{time.time_ns()}")
+        fut = self.client.submit(fn, item, pure=False,
+                                 key=f"fdid-fleet-{item.spec.dirname}-{item.input_hash[:12]}-{time.time_ns()}")
+        self.futures.append(fut)
+        return fut
 
     def as_completed(self, futures):
         from distributed import as_completed
         return as_completed(futures)
 
-    def close(self):
+    def close(self, interrupted=False):
+        """Close the client this runner opened; ``interrupted`` (Ctrl-C): first cancel the entries
+        not finished (the command had ended while the cluster went on with them: helper-56). An
+        entry a worker is running finishes there (a Dask task is not stopped); its outputs are
+        atomic."""
+        if interrupted and self.futures:
+            self.client.cancel([f for f in self.futures if not f.done()])
         if self.own:
             self.client.close()
 
@@ -457,6 +480,17 @@ def run_fleet(manifest, out, previous=None, scheduler=None, workers=None, client
                 attempt += 1
                 ex.close()
                 ex = _LocalPool(ex.workers)
+    except BaseException:       # Ctrl-C: stop the workers now, leave no half-written entry folder
+        if bar is not None:
+            bar.close()
+            bar = None
+        if ex is not None:
+            ex.close(interrupted=True)
+            ex = None
+        for item in todo:
+            remove_orphan_temp_files(item.entry_dir)
+            _remove_empty([Path(item.entry_dir)])
+        raise
     finally:
         if bar is not None:
             bar.close()
