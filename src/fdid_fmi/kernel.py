@@ -49,7 +49,8 @@ class _Model(ct.Structure):
                 ("fric_input", _I), ("fric_vel_output", _I), ("fric_vel_diff", _I),
                 ("axis_cmd_input", _I), ("axis_pos_output", _I), ("axis_err_output", _I),
                 ("axis_vel_output", _I), ("axis_tool_output", _I),
-                ("axis_level0", _D), ("axis_vtilde0", _D), ("axis_vtilde_floor", _D), ("n_vars", ct.c_int), ("vars", ct.c_void_p)]
+                ("axis_level0", _D), ("axis_vtilde0", _D), ("axis_vtilde_floor", _D),
+                ("n_vars", ct.c_int), ("vars", ct.c_void_p)]
 
 
 class _Flags(ct.Structure):
