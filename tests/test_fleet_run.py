@@ -203,7 +203,10 @@ def test_ctrl_c_stops_the_local_pool_now(fleet):
     out = fleet["root"] / "interrupted"
     p = subprocess.Popen([sys.executable, "-m", "fdid_fmi.cli", "fleet", "run", str(fleet["man"][1]), "--out",
                           str(out), "--workers", "1", "--no-progress"], stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True, start_new_session=True)
+                         stderr=subprocess.PIPE, text=True, start_new_session=True,
+                         # SIGINT at its default (pytest-xdist's workers ignore it, and the child
+                         # would inherit that: Python then never raises KeyboardInterrupt)
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     t_end = time.time() + 120
     while time.time() < t_end and not any((out / "entries").glob("*/*")):    # the first entry at work
         time.sleep(0.05)
