@@ -25,10 +25,14 @@ class InputError(FdidError, ValueError):
         Column / channel / parameter name.
     row : int, optional
         1-based data row (as a spreadsheet would show it), when known.
+
+    ``message`` is kept as an attribute (one line), without the place: a caller that re-raises
+    the error naming another place takes it from there, not by cutting the text.
     """
 
     def __init__(self, message, source=None, column=None, row=None):
         self.source, self.column, self.row = source, column, row
+        self.message = one_line(message)
         where = []
         if source:
             where.append(f"{source}")

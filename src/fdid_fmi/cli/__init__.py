@@ -124,15 +124,7 @@ def naming(source):
     except InputError as exc:
         if exc.source or source is None:
             raise
-        where = []
-        if exc.column is not None:
-            where.append(f"column '{exc.column}'")
-        if exc.row is not None:
-            where.append(f"row {exc.row}")
-        text = str(exc)
-        prefix = ", ".join(where) + ": "
-        msg = text[len(prefix):] if where and text.startswith(prefix) else text
-        raise InputError(msg, source=str(source), column=exc.column, row=exc.row) from None
+        raise InputError(exc.message, source=str(source), column=exc.column, row=exc.row) from None
 
 
 def _one_line(text):

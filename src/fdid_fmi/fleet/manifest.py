@@ -334,7 +334,7 @@ def _build_entry(raw: dict, defaults: dict, base: Path, row: int, where: str) ->
         try:
             args = identify_args(paths[0], spec)
         except InputError as exc:
-            raise InputError(f"entry {row}: {manifest_words(exc.args[0].split(': ', 1)[-1])}", source=where,
+            raise InputError(f"entry {row}: {manifest_words(exc.message)}", source=where,
                              column="options") from None
         try:
             parse_mapping(args.map)
@@ -344,7 +344,7 @@ def _build_entry(raw: dict, defaults: dict, base: Path, row: int, where: str) ->
             # them silently ignored where the CLI refuses them
             check_arguments(args)
         except InputError as exc:
-            raise InputError(f"entry {row} ({machine}/{axis}): {manifest_words(_message(exc))}", source=where,
+            raise InputError(f"entry {row} ({machine}/{axis}): {manifest_words(exc.message)}", source=where,
                              column=manifest_words(str(exc.source or exc.column or "options"))) from None
         return spec
     except InputError as exc:
@@ -353,16 +353,6 @@ def _build_entry(raw: dict, defaults: dict, base: Path, row: int, where: str) ->
 
 def _one_line(exc):
     return " ".join(str(exc).split())
-
-
-def _message(exc):
-    """An InputError's message without the ``source, column '...': `` prefix its text starts with."""
-    text = str(exc)
-    where = [str(exc.source)] if exc.source else []
-    where += [f"column '{exc.column}'"] if exc.column is not None else []
-    where += [f"row {exc.row}"] if exc.row is not None else []
-    prefix = ", ".join(where) + ": "
-    return text[len(prefix):] if where and text.startswith(prefix) else text
 
 
 _FLAG = re.compile(r"(?<![\w-])--([a-z][a-z0-9]*(?:-[a-z0-9]+)*)(?: ([^\s=,;:()']+)=([^\s,;()']+))?")

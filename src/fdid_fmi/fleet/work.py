@@ -303,16 +303,11 @@ def _check_traces(spec: EntrySpec, traces):
         try:
             check_data_range(tr, [ax])
         except InputError as exc:
-            raise InputError(_message(exc), source=name, column=exc.column, row=exc.row) from None
+            raise InputError(exc.message, source=name, column=exc.column, row=exc.row) from None
         if k and abs(tr.Ts - train.Ts) > 1e-9 * train.Ts:
             raise InputError(f"this held-out trace is sampled at {tr.Ts:g} s, the identification trace "
                              f"{spec.trace_name(0)} (and so the model and its FMU) at {train.Ts:g} s; give "
                              f"held-out traces sampled alike", source=name, column=tr.meta.get("time_column"))
-
-
-def _message(exc):
-    from .manifest import _message as message
-    return message(exc)
 
 
 def _identify(spec, trace):
