@@ -70,10 +70,16 @@ class SimResult:
     output_names: list
 
 
+def fits_sample_time(ts, model_Ts):
+    """Whether samples ``ts`` s apart fit a model of ``model_Ts`` s: 0.1 % apart at most (a
+    controller's cycle rounds differently from the model's; NaN does not fit)."""
+    return abs(ts - model_Ts) <= 1e-3 * model_Ts
+
+
 def check_sample_time(ts, model_Ts, what="commands", source=None):
     """InputError (column 'Ts') when commands sampled at ``ts`` s do not fit a model of
-    ``model_Ts`` s (0.1 % apart at most; NaN fails too): they must be resampled first."""
-    if not abs(ts - model_Ts) <= 1e-3 * model_Ts:
+    ``model_Ts`` s (:func:`fits_sample_time`): they must be resampled first."""
+    if not fits_sample_time(ts, model_Ts):
         raise InputError(f"{what} are sampled at {ts:g} s but the model at {model_Ts:g} s; "
                          f"resample the trace", source=source, column="Ts")
 

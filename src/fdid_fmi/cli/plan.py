@@ -134,6 +134,7 @@ def run(args):
     from ..plan import read_program
     from ..plan.interpolate import commands_from_trace, interpolate
     from ..plan.predict import fmu_axes, model_from_fmu, predict
+    from ..simulate import fits_sample_time
     from ..plan.reporting import plan_report
 
     start, given_limits = _check_options(args)
@@ -165,7 +166,7 @@ def run(args):
     if args.commands:
         tr = _ranged_trace(args.commands, args)
         recorded_Ts = tr.Ts
-        if abs(recorded_Ts - Ts) > 1e-3 * Ts:   # the controller's cycle need not be the model's
+        if not fits_sample_time(recorded_Ts, Ts):   # the controller's cycle need not be the model's
             tr = tr.resample(Ts)
         ip = commands_from_trace(prog, tr, axes, Ts=Ts)
         if tr.Ts != recorded_Ts:                # said, not silent (a review, session 34)

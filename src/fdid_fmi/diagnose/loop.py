@@ -50,6 +50,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..model import DriveModel
+from ..simulate import fits_sample_time
 from . import augment as ag
 from . import coupling, delay, friction, mode, order, periodic, whiteness
 from .base import Context, command_velocity, implausible
@@ -510,7 +511,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         split += ("; effects are judged against the model refitted on the first part, and the "
                   "augmented model is refitted on the whole trace when that fits it better")
     for tr, what in ((train, "training"), (val, "held-out")):
-        if abs(tr.Ts - model.Ts) > 1e-3 * model.Ts:
+        if not fits_sample_time(tr.Ts, model.Ts):
             raise InputError(f"trace sampled at {tr.Ts:g} s, model at {model.Ts:g} s", source=tr.source,
                              column="Ts")
         if tr.n < MIN_SAMPLES:      # what fdid diagnose requires too (below: numpy errors, NaN tests)

@@ -107,10 +107,9 @@ def check_excitation(Phi, cutoff_hz, axis, source=None, gains=GAIN_NAMES):
 
 def predict_quasi_static(model, cmds, t):
     """Tracking-error prediction of a QuasiStaticModel (Eqn 3.4); returns a SimResult."""
-    from ..simulate import SimResult
+    from ..simulate import SimResult, check_sample_time
     Ts = float(np.median(np.diff(t)))
-    if abs(Ts - model.Ts) > 1e-3 * model.Ts:
-        raise InputError(f"commands are sampled at {Ts:g} s but the model at {model.Ts:g} s", column="Ts")
+    check_sample_time(Ts, model.Ts)
     axes, cols = {}, []
     for ax in model.axes:
         if ax not in cmds:
