@@ -137,6 +137,28 @@ class LSProblem:
         self._col_input = np.array([i for i, _ in used], dtype=np.intc)
         self._col_l = np.array([l for _, l in used], dtype=int)
         self._col_late = np.ascontiguousarray(self.late[self._col_input], dtype=np.intc)
+        self._dc_rows = [(r, i) for r, (i, l) in enumerate(used) if l == self.n]
+        self._index_outputs()
+
+    def _index_outputs(self):
+        """What :meth:`project` reads per output, worked out once (it runs at every pole set):
+        the estimated columns and their block of G, the fixed columns with their d.c.-gain
+        value (Eqn 5.16), and for every input the lags l whose coefficient is a numerator
+        term with its column."""
+        self._est, self._est_block, self._fix, self._terms = [], [], [], []
+        for j, o in enumerate(self.s.outputs):
+            idx = np.array([self.col_index[c] for c in self.cols[j]], dtype=int)
+            self._est.append(idx)
+            self._est_block.append(np.ix_(idx, idx))
+            self._fix.append([(self.col_index[(i, l)], self.s.dc_gain[key][1]) for i, l, key in self.fixed[j]])
+            terms = []
+            for i, ins in enumerate(self.s.inputs):
+                fixed_l = {fl for fi, fl, _ in self.fixed[j] if fi == i}
+                ls = [l for l in range(self.n + 1) if (i, l) in self.col_index
+                      and (self.allow[(o.name, ins.name)][l] or l in fixed_l)]
+                terms.append(((o.name, ins.name), np.array(ls, dtype=int),
+                              np.array([self.col_index[(i, l)] for l in ls], dtype=int)))
+            self._terms.append(terms)
 
     # ------------------------------------------------------------ data
     def _segment(self, tr):
@@ -220,8 +242,8 @@ class LSProblem:
             # the used regressors, run-up dropped: (len(used), N)
             Mt = kernel.regressor_rows(R, self.n, self._col_input, Fr, sg.R, self._col_late, late_c,
                                        sg.late_part)
-            for r, (i, l) in enumerate(self.used):
-                if l == self.n and sg.wref[i] != 0.0:
+            for r, i in self._dc_rows:
+                if sg.wref[i] != 0.0:
                     Mt[r] += sg.wref[i] / a[-1]              # d.c. response of the removed offset
             blocks.append(Mt)
         return blocks[0] if len(blocks) == 1 else np.concatenate(blocks, axis=1)
@@ -235,31 +257,30 @@ class LSProblem:
                        v_tilde=dict(v_tilde))
         if not np.all(np.isfinite(a)):
             return (unusable, None) if want_residuals else unusable
-        Mt = self.design(a, v_tilde, overrides)
-        if not np.all(np.isfinite(Mt)):    # a pole set the Tustin filter cannot represent
+        Ms = self.design(a, v_tilde, overrides)
+        # max |M| per row without an |M| array; NaN and inf reach r (max and min propagate them)
+        r = np.maximum(Ms.max(axis=1), -Ms.min(axis=1))
+        if not np.all(np.isfinite(r)):    # a pole set the Tustin filter cannot represent
             return (unusable, None) if want_residuals else unusable
         Z = self.Z
-        r = np.abs(Mt).max(axis=1)
         r[r == 0] = 1.0
-        Ms = Mt / r[:, None]                                  # Eqn 5.9
+        Ms /= r[:, None]                                      # Eqn 5.9, in place: design's array is fresh
         G = Ms @ Ms.T
         MZ = Ms @ Z.T                                         # (k, p)
-        b, rms, feasible, res_all = {}, np.zeros(self.p), True, []
+        b, rms, feasible, finite, res_all = {}, np.zeros(self.p), True, True, []
         total = 0.0
         # absurd values (a d.c. gain of 1e300, v_tilde of 1e308) overflow here: the non-finite
         # result is refused below, without a warning line for the user
         with np.errstate(over="ignore", invalid="ignore"):
-            for j, o in enumerate(self.s.outputs):
+            for j in range(self.p):
                 z_off = np.zeros(len(self.used))
-                for i, l, key in self.fixed[j]:
-                    q, value = self.s.dc_gain[key]
-                    z_off[self.col_index[(i, l)]] = value * a[-1] * r[self.col_index[(i, l)]]  # Eqn 5.16
-                idx = [self.col_index[c] for c in self.cols[j]]
+                for k, value in self._fix[j]:
+                    z_off[k] = value * a[-1] * r[k]                # Eqn 5.16
+                idx = self._est[j]
                 rhs = MZ[:, j] - G @ z_off
                 theta = np.zeros(len(self.used))
-                if idx:
-                    Gs = G[np.ix_(idx, idx)]
-                    theta[idx] = _solve_normal(Gs, rhs[idx])
+                if idx.size:
+                    theta[idx] = _solve_normal(G[self._est_block[j]], rhs[idx])
                 full = theta + z_off
                 if want_residuals:
                     res = Z[j] - full @ Ms
@@ -270,15 +291,12 @@ class LSProblem:
                 rms[j] = np.sqrt(sse / self.N)
                 total += sse / self.Wz[j] ** 2
                 coef = full / r                                   # Eqn 5.12
-                for i, ins in enumerate(self.s.inputs):
+                finite = finite and bool(np.isfinite(coef).all())   # the numerators are taken from it
+                for key, ls, ks in self._terms[j]:
                     bb = np.zeros(self.n + 1)
-                    for l in range(self.n + 1):
-                        k = self.col_index.get((i, l))
-                        if k is not None and (self.allow[(o.name, ins.name)][l] or
-                                              any(fi == i and fl == l for fi, fl, _ in self.fixed[j])):
-                            bb[l] = coef[k]
-                    b[(o.name, ins.name)] = bb
-        if not (np.all(np.isfinite(rms)) and all(np.all(np.isfinite(v)) for v in b.values())):
+                    bb[ls] = coef[ks]
+                    b[key] = bb
+        if not (finite and np.all(np.isfinite(rms))):
             # e.g. v_tilde = 1e308 mm/s: a friction regressor of 1e-306 unscaled into inf numerators
             return (unusable, None) if want_residuals else unusable
         for (oname, iname), sign in self.s.friction_sign.items():
