@@ -293,4 +293,17 @@ def test_identify_notes_a_position_that_does_not_follow_its_command(diag_files, 
     out = capsys.readouterr().out
     assert code == 0 and "note: " in out and "of the commanded motion's" in out and "x_cmd_m and x_mm" in out
     code = _exit_code(["identify", d / "train.csv", "--method", "quasi-static", "-o", tmp_path / "q2.json"])
-    assert code == 0 and "commanded motion" not in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert code == 0 and "commanded motion" not in out and "runs ahead" not in out
+
+
+def test_identify_notes_a_command_swapped_with_the_position(diag_files, tmp_path, capsys):
+    """A command swapped with the measured position (the header's names exchanged) was identified
+    without a word: the position then leads the command (correlation -0.99 here)."""
+    d = diag_files
+    text = (d / "train.csv").read_text().replace("t_s,x_cmd_mm,x_mm", "t_s,x_mm,x_cmd_mm")
+    (tmp_path / "swapped.csv").write_text(text)
+    code = _exit_code(["identify", tmp_path / "swapped.csv", "--method", "quasi-static", "-o", tmp_path / "q.json"])
+    out = capsys.readouterr().out
+    note = next((ln for ln in out.splitlines() if "runs ahead" in ln), "")
+    assert code == 0 and note.startswith("note: ") and "x_mm runs ahead of x_cmd_mm" in note and "swapped" in note

@@ -151,6 +151,18 @@ def test_failing_entry_names_its_trace_file_and_keeps_the_notes(csv_trace, tmp_p
     assert stored["notes"] == [note] and stored["outputs"] == {}
 
 
+def test_an_entry_keeps_identifys_note_on_a_swapped_command(csv_trace, tmp_path):
+    # fdid identify notes a command swapped with the measured position; the fleet ran the same
+    # trace without it (session 36)
+    (tmp_path / "a.csv").write_text("\n".join(csv_trace["lines"]) + "\n")
+    swapped = MAP.replace('"x.cmd" = "x_cmd_mm", "x.act" = "x_mm"', '"x.cmd" = "x_mm", "x.act" = "x_cmd_mm"')
+    res, _ = _run(tmp_path, ENTRY + swapped + FAST)
+    ahead = [n for n in res.notes if "runs ahead" in n]
+    assert len(ahead) == 1 and ahead[0].startswith("a.csv: axis x: x_cmd_mm runs ahead of x_mm"), res.notes
+    res, _ = _run(tmp_path, ENTRY + MAP + FAST, name="plain.toml")
+    assert not any("runs ahead" in n for n in res.notes)
+
+
 # ----------------------------------------------------------------------------- 6. notes in the summary
 def test_summary_prints_the_trace_notes():
     # the notes reached only fleet.json / fleet.html, not the console

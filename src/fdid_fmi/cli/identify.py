@@ -11,6 +11,7 @@ from ..model import DriveModel, check_name, is_play
 from ..outputs import check_output
 from . import naming
 from .argtypes import finite_float, int_in
+from ..io.follow import follow_notes
 from .mapping import add_trace_arguments, trace_from_args
 
 METHODS = ("quasi-static", "full-ls", "pole-search", "mimo")
@@ -250,32 +251,6 @@ def check_data_range(trace, axes=None):
                     raise InputError(f"the commanded position moves by only {span:.3g} mm; there is no "
                                      f"motion to identify from (check the unit and scale)",
                                      source=trace.source, column=name)
-
-
-# the tracking error of a servo is a small part of its motion: RMS(cmd - act) / RMS(cmd - mean)
-# is at most 0.07 on the virtual drive's diagnosis scenarios, 0.22 on plant2's (training and
-# held-out traces), 0.007 on EMPS; a command in m beside a position in mm reads 0.999 (helper-55:
-# identified without a word). A rule, with room on both plants: a note, not a refusal.
-MAX_FOLLOW_RATIO = 0.5
-
-
-def follow_notes(trace, axes=None):
-    """Notes for the axes whose measured position does not follow the command: the tracking
-    error's RMS is more than ``MAX_FOLLOW_RATIO`` of the commanded motion's (columns swapped for
-    another axis, or in different units)."""
-    import numpy as np
-    out = []
-    for ax in axes or trace.axes:
-        if not (trace.has(ax, "cmd") and trace.has(ax, "act")):
-            continue
-        c = trace.cmd(ax)
-        motion = float(np.sqrt(np.mean((c - c.mean()) ** 2)))
-        r = float(np.sqrt(np.mean((c - trace.act(ax)) ** 2))) / motion if motion > 0 else 0.0
-        if r > MAX_FOLLOW_RATIO:
-            out.append(f"axis {ax}: the tracking error's RMS is {r:.0%} of the commanded motion's (a servo's "
-                       f"stays under 25 % on both test plants): check that {trace.roles[ax]['cmd']} and "
-                       f"{trace.roles[ax]['act']} are this axis's positions in the units given (--unit)")
-    return out
 
 
 def _orders(args):

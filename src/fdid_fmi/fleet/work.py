@@ -264,11 +264,13 @@ def channel_errors(model, traces, axis):
 
 def _read_traces(spec: EntrySpec, notes=None):
     """The entry's traces, read as ``fdid identify`` reads them; the readers' notes (units assumed
-    or doubtful) are appended to ``notes`` as each trace is read (``<trace name>: <note>``, with
-    the advice in the manifest's words), so that those of the traces read before a failing one
-    are kept."""
+    or doubtful) and, for the identification trace, ``fdid identify``'s notes on a position that
+    does not follow its command (:func:`~fdid_fmi.io.follow.follow_notes`) are appended to
+    ``notes`` as each trace is read (``<trace name>: <note>``, with the advice in the manifest's
+    words), so that those of the traces read before a failing one are kept."""
     from ..cli import naming
     from ..cli.mapping import trace_from_args
+    from ..io.follow import follow_notes
     traces = []
     for k, p in enumerate(spec.traces):
         args = identify_args(p, spec)
@@ -277,7 +279,8 @@ def _read_traces(spec: EntrySpec, notes=None):
         with naming(spec.trace_name(k)):
             tr = trace_from_args(p, args, notes=False)      # kept in EntryResult.notes
         if notes is not None:
-            notes += [manifest_words(f"{spec.trace_name(k)}: {n}") for n in tr.meta.get("notes", [])]
+            said = tr.meta.get("notes", []) + (follow_notes(tr, [spec.axis]) if k == 0 else [])
+            notes += [manifest_words(f"{spec.trace_name(k)}: {n}") for n in said]
         traces.append(tr)
     return traces
 
