@@ -512,13 +512,14 @@ int fdid_do_step(FdidInstance *I, const char *fn, double t_comm, double h) {
          * adds up its steps (t += h) drifts by their rounding, which grows with |t| */
         double n_h = (double)(long long)(h / Ts + 0.5);
         if (n_h >= 1.0 && absd(h - n_h * Ts) <= grid_tolerance(t_end))
-            return fdid_fail(I, "%s: currentCommunicationPoint %.17g s is %.3g s off the FMU time %.17g s, so "
-                                "the step of %.0f sample(s) would end %.3g s off the sample grid: the "
+            return fdid_fail(I, "%s: currentCommunicationPoint %.17g s is %.3g s %s the FMU time %.17g s, so "
+                                "the step of %.0f sample(s) would end %.3g s %s the nearest sample time: the "
                                 "master's clock has drifted (compute it as start time + n h, not by adding "
-                                "steps)", fn, t_comm, t_comm - t, t, n_h, off);
+                                "steps)", fn, t_comm, absd(t_comm - t), t_comm < t ? "before" : "after", t, n_h,
+                             absd(off), off < 0.0 ? "before" : "after");
         return fdid_fail(I, "%s: communication step size %.17g s is not an integer multiple of the "
-                            "model sample time Ts = %.17g s (the step would end %.3g s off the sample grid)",
-                         fn, h, Ts, off);
+                            "model sample time Ts = %.17g s (the step would end %.3g s %s the nearest sample "
+                            "time)", fn, h, Ts, absd(off), off < 0.0 ? "before" : "after");
     }
     if (nsteps > FDID_MAX_STEPS_PER_DOSTEP)
         return fdid_fail(I, "%s: communication step size %g s would take %.0f internal steps of Ts = %g s; "
