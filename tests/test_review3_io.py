@@ -141,6 +141,11 @@ def test_a_slow_stated_time_unit_and_unitless_positions_are_said(tmp_path, capsy
     # in us there is no smaller unit to suggest (--unit t_us=ms would make it 1000x worse)
     assert read_trace(_ms_csv(tmp_path / "us.csv", "t_us,x_cmd_mm,x_mm", step=1e6)).meta["notes"][0].endswith(
         "fdid reads no time unit below us: convert the column")
+    # s under a ms name (session 36): 1 kHz read as 1 MHz
+    assert read_trace(_ms_csv(tmp_path / "fast.csv", "t_ms,x_cmd_mm,x_mm", step=0.001)).meta["notes"] == [
+        "column 't_ms' steps by 1e-06 s (1e+06 Hz), read in ms as stated; servo traces step by 0.1-10 ms: "
+        "if it is in s, give --unit t_ms=s"]
+    assert "notes" not in read_trace(_ms_csv(tmp_path / "fast_ok.csv", "t_us,x_cmd_mm,x_mm", step=31.25)).meta
     assert "notes" not in read_trace(_ms_csv(tmp_path / "ok.csv", "t_ms,x_cmd_mm,x_mm")).meta
     assert "notes" not in read_trace(_ms_csv(tmp_path / "ok2.csv", "t_s,x_cmd_mm,x_mm", step=0.099)).meta
     code, out, err = run_cli(capsys, "identify", tmp_path / "slow.csv", "-o", tmp_path / "m.json",

@@ -35,7 +35,7 @@ A time column with no unit is read in s, but one of 16 or more samples stepping 
 more is refused (:func:`check_time_unit`): servo traces step by 0.1-10 ms, so it is in ms (1 kHz read as
 Ts = 1 s) or us; ``t_ms``, ``t [ms]`` or ``--unit t=ms`` states the unit. A stated time unit is
 read as stated, with a note (``meta["notes"]``, printed by the CLI) when it steps that slowly
-(:func:`slow_time_note`); so are role columns whose names state no unit (read in the role's
+or faster than 10 us (:func:`time_step_note`); so are role columns whose names state no unit (read in the role's
 default unit, mm for positions).
 
 The tracking-error pseudo-role ``err`` is not a ``Trace`` role: the column is kept as an
@@ -60,6 +60,9 @@ AXIS_RE = re.compile(r"^(?:[xyzabcuvw]\d*|axis\d+)$")
 AXIS_NAME_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")   # any axis name (it becomes C/FMI names)
 MAX_UNSTATED_STEP_S = 0.1   # s: a time column with no unit stepping this slowly is not in s
 MIN_CHECKED_SAMPLES = 16    # ... checked from this many samples on (a trace tool's record has 1000s)
+# s: a stated time unit stepping faster than this is noted: the fastest drive trace tools sample
+# the current loop every 31.25-62.5 us; s under a ms name (t_ms) steps by 1 us at 1 kHz
+MIN_STATED_STEP_S = 10e-6
 
 # role keywords (the first token after the axis that is a keyword decides; see _role_from_tokens)
 ROLE_WORDS = {
@@ -365,7 +368,7 @@ def assemble(columns, *, source, mapping=None, units=None, file_units=None, rows
     if stated[tcol] is None:
         check_time_unit(t, source=source, column=tcol)
     else:
-        notes += slow_time_note(t, column=tcol, unit=stated[tcol])
+        notes += time_step_note(t, column=tcol, unit=stated[tcol])
 
     channels = {}
     for col in names:
@@ -453,18 +456,24 @@ def check_time_unit(t, *, source, column):
             f"'ms'}}); if it really is seconds, --unit {column}=s", source=source, column=column)
 
 
-def slow_time_note(t, *, column, unit):
+def time_step_note(t, *, column, unit):
     """``[note]`` when a time column with a stated unit steps by ``MAX_UNSTATED_STEP_S`` (0.1 s)
-    or more, else ``[]``: the unit was stated, so it is read as stated (a slow record may be
-    real), but servo traces step by 0.1-10 ms, and a ms column under an s name (``t_s``) makes
-    every pole bound and Ts of the model 1000x off without an error (session 35: the bundled
-    example's time in ms under ``t_s`` identified a quasi-static K_vel of 12.4 s for 0.0124 s)."""
+    or more, or by less than ``MIN_STATED_STEP_S`` (10 us), else ``[]``: the unit was stated, so
+    it is read as stated (a slow record may be real), but servo traces step by 0.1-10 ms, and a ms
+    column under an s name (``t_s``) makes every pole bound and Ts of the model 1000x off without
+    an error (session 35: the bundled example's time in ms under ``t_s`` identified a quasi-static
+    K_vel of 12.4 s for 0.0124 s); s under a ms name makes them 1000x off the other way."""
     ts = _slow_step(t)
-    if ts is None:
+    if ts is not None:
+        other = {"s": "ms", "ms": "us"}.get(unit)
+        advice = (f"if it is in {other}, give --unit {column}={other}" if other else
+                  "fdid reads no time unit below us: convert the column")
+    elif t.size >= MIN_CHECKED_SAMPLES and (ts := float(np.median(np.diff(t)))) < MIN_STATED_STEP_S:
+        other = {"us": "ms", "ms": "s"}.get(unit)
+        advice = (f"if it is in {other}, give --unit {column}={other}" if other else
+                  "fdid reads no time unit above s: convert the column")
+    else:
         return []
-    smaller = {"s": "ms", "ms": "us"}.get(unit)
-    advice = (f"if it is in {smaller}, give --unit {column}={smaller}" if smaller else
-              "fdid reads no time unit below us: convert the column")
     return [f"column '{column}' steps by {ts:.6g} s ({1.0 / ts:.4g} Hz), read in {unit} as stated; "
             f"servo traces step by 0.1-10 ms: {advice}"]
 
