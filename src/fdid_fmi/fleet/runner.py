@@ -480,7 +480,9 @@ def run_fleet(manifest, out, previous=None, scheduler=None, workers=None, client
                 attempt += 1
                 ex.close()
                 ex = _LocalPool(ex.workers)
-    except BaseException:       # Ctrl-C: stop the workers now, leave no half-written entry folder
+    # Ctrl-C, or a fault of this loop (no entry can finish after it): stop the workers now and
+    # leave no half-written entry folder
+    except BaseException:
         if bar is not None:
             bar.close()
             bar = None
