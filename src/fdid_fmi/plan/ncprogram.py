@@ -16,11 +16,13 @@ What is read
   ``I J K`` centre offsets (incremental from the start point; ``G90.1`` makes them absolute) or
   ``R`` radius (``R > 0``: the arc of at most 180 deg, ``R < 0``: the longer one); an ``I J K``
   arc whose end equals its start is a full circle; a move along the plane normal during an arc
-  makes a helix; ``G4 P<s>`` dwell (LinuxCNC convention: P in seconds).
+  makes a helix; ``G4 P<s>`` dwell (LinuxCNC convention: P in seconds; a whole-number P of 100
+  or more gets a note: a Fanuc program means ms there, and writes seconds as ``X`` or ``U``).
 * modal state: ``G17/G18/G19`` (XY / ZX / YZ plane), ``G20/G21`` (inch / mm: coordinates and
   feeds x 25.4), ``G90/G91`` (absolute / incremental), ``G93`` (inverse time: ``F`` = 1 / block
   time in minutes, needed on every feed block) and ``G94`` (``F`` in units per minute, modal).
-* ``N`` line numbers, ``O`` program numbers, ``( ... )`` and ``;`` comments.
+* ``N`` line numbers (whole numbers: ``N10.5`` is refused), ``O`` program numbers, ``( ... )``
+  and ``;`` comments.
 * ``%`` lines: the first opens the program (tape start), the second closes it: the lines after
   the closing ``%`` are not read (a controller stops reading there), only listed.
 * block delete ``/``: the block is **run**, as a controller runs it with its block-delete switch
@@ -28,7 +30,9 @@ What is read
   ``Program.notes`` so that the user knows it was planned; delete the line to plan without it.
 * numbers are written in digits (``X1e9``, exponent notation, is not G-code and is refused).
 * passed over and listed (they do not move the axes): ``S M T H D`` words and the G codes
-  ``G40 G49 G54-G59 G61 G64 G80`` (offsets and modes that do not change the programmed path).
+  ``G40 G49 G54-G59 G61 G64 G80`` (offsets and modes that do not change the programmed path), and
+  ``G64``'s ``P`` and ``Q`` (LinuxCNC's blending and naive-CAM tolerances: blending is not
+  imitated, every block ends in an exact stop).
 * ``M2`` / ``M30`` end the program: lines after them are listed as not run, not read (a CNC
   stops there; Fanuc-style subprograms often follow). ``M98`` / ``M99`` (subprogram call /
   return) stop with an error: their motion would be missing.
@@ -45,6 +49,7 @@ radii differ within the tolerance the arc's radius changes linearly along it (as
 """
 from __future__ import annotations
 
+import codecs
 import math
 import re
 from dataclasses import dataclass, field
@@ -168,8 +173,11 @@ class Program:
     notes : list of (line, text)     how a block was read that the user should know (block delete)
     source : str
     lines : list[str]         the program text, line by line
-    encoding : str            ``utf-8``, or ``latin-1`` for a file that is not UTF-8 (written
-                              back in it: its comments keep their bytes)
+    encoding : str            the file's encoding, as :func:`encode_text` writes it back (its
+                              comments keep their bytes): ``utf-8``, ``utf-8-sig`` (with a BOM),
+                              ``latin-1`` (a file that is not UTF-8), ``utf-16-le`` / ``-be`` or
+                              ``utf-32-le`` / ``-be`` (always with their BOM: read only with it)
+    newline : str             the line end of the file (its first one): ``\n``, ``\r\n`` or ``\r``
     axes_used : list[str]     axes that move (``x``, ``y``, ``z``)
     """
 
@@ -180,6 +188,7 @@ class Program:
     lines: list = field(default_factory=list)
     encoding: str = "utf-8"
     notes: list = field(default_factory=list)
+    newline: str = "\n"
 
     @property
     def axes_used(self):
@@ -199,13 +208,36 @@ def read_program(path, start=(0.0, 0.0, 0.0)):
     Decoded as the trace readers decode (:func:`fdid_fmi.io.common.read_text_file`): UTF-16/32
     with a byte-order mark, else UTF-8, else Latin-1 (a controller's ``(Tiefe Ø 10)`` comment
     in Windows-1252 / Latin-1); a file with NUL bytes is refused. ``Program.encoding`` says
-    which, so that :func:`write_program`'s output keeps the comments' bytes.
+    which (byte order and byte-order mark included), so that :func:`write_program`'s output keeps
+    the comments' bytes and a controller reads it as it read the program.
     """
     path = Path(path)
     text, codec = decode_text_file(path)
     prog = parse_program(text, source=str(path), start=start)
-    prog.encoding = "latin-1" if codec == "latin-1" else "utf-8"    # Program.encoding's two values
+    with open(path, "rb") as fh:
+        head = fh.read(4)
+    prog.encoding = _file_encoding(codec, head)
     return prog
+
+
+def _file_encoding(codec, head):
+    """Program.encoding of a file decoded by ``codec`` whose first bytes are ``head``."""
+    if codec in ("utf-16", "utf-32"):            # decoded by its BOM: keep the byte order
+        little = head.startswith(codecs.BOM_UTF32_LE if codec == "utf-32" else codecs.BOM_UTF16_LE)
+        return f"{codec}-{'le' if little else 'be'}"
+    if codec == "utf-8-sig":
+        return "utf-8-sig" if head.startswith(codecs.BOM_UTF8) else "utf-8"
+    return "latin-1"
+
+
+def encode_text(text, encoding):
+    """``text`` as bytes in a :attr:`Program.encoding`: UTF-16/32 with their byte-order mark
+    (``utf-16-le`` writes none by itself), ``utf-8-sig`` with the UTF-8 one; characters the encoding
+    lacks (a header in Latin-1) as backslash escapes."""
+    data = text.encode(encoding, "backslashreplace")
+    if encoding in ("utf-16-le", "utf-16-be", "utf-32-le", "utf-32-be"):
+        data = "\ufeff".encode(encoding) + data
+    return data
 
 
 def _strip_comments(raw, source, row):
@@ -284,6 +316,7 @@ def parse_program(text, source="<string>", start=(0.0, 0.0, 0.0)):
     ended = None
     percent = []                             # rows of the '%' lines read: opening, closing
     lines = text_lines(text)
+    eol = re.search(r"\r\n|\r|\n", text)
     for row, raw in enumerate(lines, 1):
         line = raw.strip()
         if len(percent) == 2:                # after the closing '%': not read (end of the tape)
@@ -312,7 +345,7 @@ def parse_program(text, source="<string>", start=(0.0, 0.0, 0.0)):
         if calls:
             raise _err(f"'{calls[0]}' (subprogram call / return) is not supported: expand the "
                        "subprogram into the program", source, row)
-        b = _block(words, st, pos, source, row, raw, len(blocks), ignored)
+        b = _block(words, st, pos, source, row, raw, len(blocks), ignored, notes)
         if b is not None:
             blocks.append(b)
             pos = b.end.copy()
@@ -320,20 +353,23 @@ def parse_program(text, source="<string>", start=(0.0, 0.0, 0.0)):
         if ends:
             ended = ends[0]                  # program end: a CNC runs nothing after it
     return Program(blocks=blocks, start=np.asarray(start, float), ignored=ignored, source=source,
-                   lines=lines, notes=notes)
+                   lines=lines, notes=notes, newline=eol.group(0) if eol else "\n")
 
 
 def _err(msg, source, row):
     return InputError(msg, source=source, row=row)
 
 
-def _block(words, st, pos, source, row, raw, index, ignored):
+def _block(words, st, pos, source, row, raw, index, ignored, notes=None):
     number = None
-    gcodes, vals = [], {}
+    gcodes, vals, texts, g64 = [], {}, {}, None
     for k, (letter, value, txt) in enumerate(words):
         if letter == "N":
             if k != 0:
                 raise _err(f"line number '{txt}' must be the first word", source, row)
+            if value != int(value) or value < 0:
+                raise _err(f"line number '{txt}' must be a whole number 0 or more (e.g. N10)",
+                           source, row)
             number = int(value)
         elif letter == "O":
             ignored.append((row, txt))
@@ -342,6 +378,8 @@ def _block(words, st, pos, source, row, raw, index, ignored):
             g = int(g) if g == int(g) else g
             if g in _IGNORED_G:
                 ignored.append((row, txt))
+                if g == 64:
+                    g64 = txt
             elif g in _GROUPS:
                 gcodes.append((g, txt))
             else:
@@ -349,14 +387,25 @@ def _block(words, st, pos, source, row, raw, index, ignored):
                            f"G21 G90 G91 G90.1 G91.1 G93 G94)", source, row)
         elif letter in _IGNORED_LETTERS:
             ignored.append((row, txt))
-        elif letter in "XYZIJKRFP":
+        elif letter in "XYZIJKRFPQ":
             if letter in vals:
                 raise _err(f"word '{letter}' appears twice", source, row)
-            vals[letter] = value
+            vals[letter], texts[letter] = value, txt
         else:
             kind = "axis" if letter in "ABCUVW" else "word"
             raise _err(f"{kind} '{txt}' is not supported (linear axes X Y Z, arcs I J K R, feed F)",
                        source, row)
+    if g64 is not None:        # G64 P<tol> Q<tol>: blending tolerances, passed over with G64
+        if any(g == 4 for g, _ in gcodes) and "P" in vals:
+            raise _err(f"'{texts['P']}' with both G4 and {g64}: is it the dwell or the blending "
+                       "tolerance? Put them in two blocks", source, row)
+        for w in "PQ":
+            if w in vals:
+                ignored.append((row, f"{texts[w]} ({g64} tolerance)"))
+                del vals[w]
+    if "Q" in vals:
+        raise _err(f"word '{texts['Q']}' is not supported (read with G64 only, as its tolerance)",
+                   source, row)
     groups = {}
     for g, txt in gcodes:
         grp = _GROUPS[g]
@@ -384,8 +433,13 @@ def _block(words, st, pos, source, row, raw, index, ignored):
         extra = [w for w in vals if w not in ("P", "F")]
         if extra:
             raise _err(f"G4 takes only P, got {extra}", source, row)
+        p = float(vals["P"])
+        if p >= 100 and p == int(p) and notes is not None:
+            notes.append((row, f"G4 {texts['P']} is read as {p:.0f} s (P in seconds, as LinuxCNC "
+                               f"reads it); a Fanuc program's P is in ms (X or U for seconds there): "
+                               f"for {p / 1000:g} s write P{p / 1000:g}"))
         return Block(index, row, number, raw, "dwell", pos.copy(), pos.copy(), 0.0,
-                     block_time=float(vals["P"]), units=st["units"])
+                     block_time=p, units=st["units"])
     if "P" in vals:
         raise _err("P is only read with G4 (dwell)", source, row)
     if "motion" in groups:
@@ -397,7 +451,9 @@ def _block(words, st, pos, source, row, raw, index, ignored):
             raise _err(f"{groups['motion'][1]} without end point or centre", source, row)
         return None                      # modal settings only
     if st["motion"] is None:
-        raise _err("axis words without a motion mode (G0, G1, G2 or G3) in force", source, row)
+        given = " ".join(texts[w] for w in axis_words + arc_words)
+        raise _err(f"'{given}' without a motion mode (G0, G1, G2 or G3) in force: end points "
+                   f"(X Y Z) and arc centres and radii (I J K R) are read only with one", source, row)
     motion = st["motion"]
     end = pos.copy()
     for a, w in enumerate("XYZ"):
@@ -544,12 +600,12 @@ def write_program(program, feeds_mm_s, path=None, header=None):
             fword = new * 60.0 / (INCH if b.units == "inch" else 1.0)
             modal_changed = True
         out.append(_replace_f(raw, fword))
-    text = "\n".join(out) + "\n"
+    text = program.newline.join(out) + program.newline
     if path is not None:
         from ..outputs import atomic_write, check_output
         src = Path(program.source)
         check_output(path, inputs=[src] if src.is_file() else [], what="NC program")
-        atomic_write(path, text.encode(program.encoding, "backslashreplace"))
+        atomic_write(path, encode_text(text, program.encoding))
     return text
 
 
