@@ -49,7 +49,9 @@ shift || true
 case "$cmd" in
     demo)
         setup demo
-        "$VENV/bin/fdid" demo --out out/demo "$@"
+        # fdid demo's own folders: out/demo/virtual, out/demo/emps (one shared folder left the
+        # virtual run's plan.html beside the EMPS run's files)
+        "$VENV/bin/fdid" demo "$@"
         ;;
     test)
         apt_install libtbb12 valgrind gcc-mingw-w64-x86-64
