@@ -125,6 +125,17 @@ def test_missing_and_empty_model_files(capsys, tmp_path):
              "empty.json", "model file is empty (0 bytes)")
 
 
+def test_an_fmu_given_as_the_model_says_so(capsys, tmp_path, model):
+    """helper-59 (session 36): an FMU where the model JSON belongs was 'not a JSON model file
+    ('utf-8' codec can't decode byte 0xbe ...)'."""
+    csv = trace_csv(tmp_path / "run.csv", n=200)
+    assert main(["export", str(model), "-o", str(tmp_path / "drive.fmu")]) == 0
+    capsys.readouterr()
+    line = one_line(*run(capsys, "simulate", tmp_path / "drive.fmu", csv, "-o", tmp_path / "p.csv"),
+                    "drive.fmu", "is a zip archive (an FMU?), not a model file: give the model JSON")
+    assert "codec" not in line
+
+
 # -------------------------------------------------- 2./4. damaged shapes and types name their key
 def _damaged(change):
     d = two_axis()

@@ -406,6 +406,10 @@ def load_model(path):
     from .io.common import check_file
     path = check_file(path, what="model file")      # a directory is not "not found"
     parse_int, pairs = _json_hooks()
+    with open(path, "rb") as f:
+        if f.read(4) == b"PK\x03\x04":     # a zip archive: an FMU (or another zip) where the JSON belongs
+            raise InputError("is a zip archive (an FMU?), not a model file: give the model JSON that "
+                             "fdid identify wrote (fdid export makes the FMU from it)", source=str(path))
     try:
         d = json.loads(path.read_text(), object_pairs_hook=pairs, parse_int=parse_int)
     except _DuplicateKey as exc:
