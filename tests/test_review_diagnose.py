@@ -422,3 +422,11 @@ def test_evidence_figures_label_every_axis_with_a_unit():
         if c["kind"] == "mode":
             assert [t.get_text() for t in fig.axes[0].get_legend().get_texts()][-1] == "coherence"
         plt.close(fig)
+
+
+def test_progress_line_gives_parameters_in_words():
+    """helper-59 (session 36): the progress line printed the effect's parameters as a Python dict
+    with 17 digits ({'v_s_mm_s': 1.2583806379509181})."""
+    from fdid_fmi.diagnose.loop import _params_words
+    assert _params_words({"v_s_mm_s": 1.2583806379509181, "channel": "y_cmd", "samples": 3}) == \
+        "v_s_mm_s 1.258, channel y_cmd, samples 3"

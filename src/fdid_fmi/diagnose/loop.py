@@ -624,7 +624,7 @@ def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0
                                                      recipe.structure_chosen))
         trials = []
         for c, (fit_c, fit_ref) in zip(detected, fits):
-            say(f"round {step + 1}: refit with {c.kind} {c.params}")
+            say(f"round {step + 1}: refit with {c.kind} {_params_words(c.params)}".rstrip())
             try:
                 m = fit_c.result()
             except InputError as exc:
@@ -709,3 +709,9 @@ def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0
                   + data_limits(model.axes, tool_axes, conc, kept, lost, play))
     diag.wall_time_s = time.perf_counter() - t0
     return diag
+
+
+def _params_words(params):
+    """An effect's parameters for the progress line: ``v_s_mm_s 1.258`` (4 significant digits),
+    not a Python dict."""
+    return ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in params.items())
