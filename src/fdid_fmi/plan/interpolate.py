@@ -3,9 +3,15 @@
 Imitated behaviour: **exact stop at every block end, no corner blending** - what a CNC does in
 exact-stop mode (ISO ``G61`` / ``G09`` on every block, Heidenhain's M197-free default with
 zero tolerance): the path velocity comes to rest at the end of each block, so the commanded
-path *is* the programmed geometry (lines, arcs, helices) and corners are sharp. The in-position
-wait of a real exact stop is not imitated: the next block starts at the next sample, and the
-axes' lag carries into it (that is what the twin then predicts at the corner). ``G64`` blending
+path *is* the programmed geometry (lines, arcs, helices) and corners are sharp. After a cutting
+block (G1/G2/G3) the in-position wait of a real exact stop is not imitated: the next block
+starts at the next sample, and the axes' lag carries into it (that is what the twin then
+predicts at the corner). After a **rapid (G0)** it is (``in_position``, :class:`InPosition`):
+real controls check in-position after a rapid (Fanuc's default; SINUMERIK's exact stop for G0
+even in G64), so the next block starts at the first sample at which every modelled axis's
+predicted tracking error |cmd - act| is within the window (the rapid's end point held until
+then; rapids in sequence are settled in turn; the wait counts to the rapid's block). Without
+it the lag a rapid leaves (mm) showed as the next cut's contour error. ``G64`` blending
 is not imitated. With ``corner_angle_deg`` the look-ahead of :mod:`fdid_fmi.plan.lookahead`
 keeps the path velocity through junctions whose tangents differ by at most that angle (still
 no blending: the path stays the programmed one).
@@ -81,7 +87,8 @@ class Interpolation:
     Ts : float, s
     block_of_sample : ndarray (N,) int   index of the block each sample belongs to (-1: before
         the first block; the settling time after the last block counts to the last block)
-    spans : list of (k0, k1)   block b moves from sample k0 to sample k1 (its end point)
+    spans : list of (k0, k1)   block b moves from sample k0 to sample k1 (its end point; a
+        rapid's span includes its in-position wait, the end point held)
     path_s : ndarray (N,), mm    programmed path length travelled at each sample
     cycle_time : float, s     time from the first block's start to the last block's end
     info : dict               limits, per-block feed used, corner rule
@@ -99,6 +106,86 @@ class Interpolation:
     @property
     def n(self):
         return self.t.size
+
+
+#: Default in-position window, mm: SINUMERIK 840D's fine exact-stop window (MD36010
+#: STOP_LIMIT_FINE, 0.01 mm) and a typical Fanuc in-position width (10 um).
+IN_POSITION_MM = 0.01
+
+#: Longest in-position wait, s: a P loop stuck by friction can rest outside the window for good;
+#: then the next block starts after this wait, and a note names the line and the residual error.
+IN_POSITION_CAP_S = 5.0
+
+
+class InPosition:
+    """The in-position wait after a rapid (G0), found from the twin itself.
+
+    The commands up to the rapid's end sample k_e, then the end point held for ``cap_s``, are
+    run through :func:`fdid_fmi.simulate.simulate`; the wait is w = k - k_e samples, k >= k_e
+    the first sample at which |cmd - act| <= ``window_mm`` on every axis of the model (the run
+    is causal and deterministic: the whole program's prediction shows the same errors up to the
+    next block's start). Not reached within ``cap_s``: w = the cap, and :attr:`notes` gets a line
+    naming the residual error.
+
+    Parameters
+    ----------
+    model : DriveModel   the twin (an FMU's: :func:`fdid_fmi.plan.predict.model_from_fmu`)
+    window_mm : float > 0, mm
+    cap_s : float > 0, s
+
+    Cost: one simulation of the program up to each rapid (results are kept, keyed by the
+    commanded samples, so re-plans with the same samples up to a rapid do not run it again).
+    """
+
+    def __init__(self, model, window_mm=IN_POSITION_MM, cap_s=IN_POSITION_CAP_S):
+        for name, val in (("in-position window", window_mm), ("in-position cap", cap_s)):
+            if not (isinstance(val, (int, float, np.floating)) and math.isfinite(val) and val > 0):
+                raise InputError(f"the {name} must be a finite number > 0, got {val!r}",
+                                 column="--in-position")
+        bad = [a for a in model.axes if a not in AXES]
+        if bad:
+            raise InputError(f"the model's axes {bad} are not x, y or z", column="axes")
+        self.model, self.window_mm, self.cap_s = model, float(window_mm), float(cap_s)
+        self._cache = {}
+
+    def wait(self, P, Ts):
+        """In-position wait after commanded samples ``P`` ((k_e + 1, 3) mm, x y z; the last row
+        the rapid's end point, first commanded at k_e).
+
+        Returns
+        -------
+        (w, residual) : samples to hold the end point, and None when the window is reached
+        (else {axis: |error| at the end of the cap, mm})
+        """
+        import hashlib
+        from ..simulate import simulate
+        P = np.ascontiguousarray(P, float)
+        key = (float(Ts), P.shape, hashlib.blake2b(P.tobytes(), digest_size=16).digest())
+        if key in self._cache:
+            return self._cache[key]
+        n_cap = max(1, int(math.ceil(self.cap_s / Ts - 1e-9)))
+        k_e = P.shape[0] - 1
+        cmds = {a: np.concatenate([P[:, AXES.index(a)], np.full(n_cap, P[-1, AXES.index(a)])])
+                for a in self.model.axes}
+        res = simulate(self.model, cmds, Ts=Ts)
+        err = {a: np.abs(cmds[a][k_e:] - np.asarray(res.axes[a]["position"], float)[k_e:])
+               for a in self.model.axes}
+        worst = np.max(np.vstack(list(err.values())), axis=0)
+        inside = np.flatnonzero(worst <= self.window_mm)
+        out = (int(inside[0]), None) if inside.size else (n_cap, {a: float(e[-1]) for a, e in err.items()})
+        if len(self._cache) >= 256:
+            self._cache.clear()
+        self._cache[key] = out
+        return out
+
+    def describe(self, block, w, residual, Ts):
+        """The note of a wait that reached its cap (None otherwise)."""
+        if residual is None:
+            return None
+        worst = ", ".join(f"{a} {e * 1e3:.3g} um" for a, e in residual.items())
+        return (f"line {block.line}: after the rapid the axes are not within the in-position window of "
+                f"{self.window_mm:g} mm after {w * Ts:.3g} s (residual error: {worst}); the next block "
+                f"starts then")
 
 
 def parse_limits(text, default=None):
@@ -299,7 +386,7 @@ def block_profile(block, limits, Ts, override=1.0, source=None):
 
 
 def interpolate(program, limits, Ts, overrides=None, lead_in=0.05, settle=0.5, progress=False,
-                corner_angle_deg=None):
+                corner_angle_deg=None, in_position=None):
     """Commanded positions of a program at Ts (see module docstring).
 
     Parameters
@@ -313,10 +400,14 @@ def interpolate(program, limits, Ts, overrides=None, lead_in=0.05, settle=0.5, p
         to the last block)
     corner_angle_deg : float, optional   no stop at junctions whose tangents differ by at most
         this angle (:mod:`fdid_fmi.plan.lookahead`); default: exact stop at every block end
+    in_position : InPosition, optional   the in-position wait after every G0 block (before the
+        next block; see the module docstring); None: no wait (the rapid's lag carries into the
+        next block). Cutting blocks (G1/G2/G3) never wait.
 
     Returns
     -------
-    Interpolation
+    Interpolation (``info["in_position"]``: the window and each rapid's wait; ``info["notes"]``:
+    waits that reached the cap)
     """
     if not (Ts > 0 and math.isfinite(Ts)):
         raise InputError(f"Ts must be > 0 s, got {Ts!r}", column="Ts")
@@ -336,8 +427,10 @@ def interpolate(program, limits, Ts, overrides=None, lead_in=0.05, settle=0.5, p
     check_block_lengths(program, limits, Ts, overrides)     # before any array is made
     if corner_angle_deg is not None:
         from .lookahead import interpolate_lookahead
-        return interpolate_lookahead(program, limits, Ts, corner_angle_deg, overrides, lead_in, settle)
+        return interpolate_lookahead(program, limits, Ts, corner_angle_deg, overrides, lead_in, settle,
+                                     in_position=in_position)
     overrides = overrides or {}
+    waits, notes = [], []
     n0 = int(round(lead_in / Ts))
     pieces, spans, feeds = [], [], []
     k = n0
@@ -367,6 +460,18 @@ def interpolate(program, limits, Ts, overrides=None, lead_in=0.05, settle=0.5, p
             feeds.append(prof.v_peak * c)
         k += n
         pos = b.end
+        if in_position is not None and b.kind == "rapid" and b is not program.blocks[-1]:
+            # in-position wait: the end point held until every axis is within the window
+            P0 = np.vstack([np.repeat(program.blocks[0].start[None, :], n0 + 1, axis=0)] + pieces)
+            w, residual = in_position.wait(P0, Ts)
+            if w:
+                pieces.append(np.repeat(b.end[None, :], w, axis=0))
+                spans[-1] = (spans[-1][0], k + w)
+                k += w
+            waits.append(_wait_entry(b, w, residual, Ts))
+            note = in_position.describe(b, w, residual, Ts)
+            if note:
+                notes.append(note)
     n_settle = int(round(settle / Ts))
     P = np.vstack([np.repeat(program.blocks[0].start[None, :], n0 + 1, axis=0)] + pieces
                   + [np.repeat(pos[None, :], n_settle, axis=0)])
@@ -394,7 +499,21 @@ def interpolate(program, limits, Ts, overrides=None, lead_in=0.05, settle=0.5, p
                          info={"corner_rule": "exact stop at every block end, no blending",
                                "limits": {a: vars(l) for a, l in limits.items()},
                                "feed_used_mm_s": feeds, "lead_in_s": n0 * Ts,
-                               "settle_s": n_settle * Ts})
+                               "settle_s": n_settle * Ts,
+                               **in_position_info(in_position, waits, notes)})
+
+
+def _wait_entry(b, w, residual, Ts):
+    return {"block": b.index + 1, "line": b.line, "wait_s": w * Ts, "reached": residual is None,
+            "residual_um": None if residual is None else {a: e * 1e3 for a, e in residual.items()}}
+
+
+def in_position_info(in_position, waits, notes):
+    """The ``in_position`` and ``notes`` entries of :attr:`Interpolation.info`."""
+    if in_position is None:
+        return {"in_position": {"window_mm": 0.0, "waits": []}, "notes": notes}
+    return {"in_position": {"window_mm": in_position.window_mm, "cap_s": in_position.cap_s, "waits": waits},
+            "notes": notes}
 
 
 #: How far a controller's setpoint may lie from the programmed path (mm), on top of the program's

@@ -25,7 +25,10 @@ exact stop) or, away from a junction, the block is slowed uniformly, until every
 within every limit (as :mod:`fdid_fmi.plan.interpolate` promises). A kinked junction (theta > 0)
 then mostly ends in an exact stop; tangent junctions keep most of their velocity.
 
-The timeline is continuous and sampled at k Ts (block ends need not fall on samples).
+The timeline is continuous and sampled at k Ts (block ends need not fall on samples). After
+every rapid (G0) the in-position wait of :class:`~fdid_fmi.plan.interpolate.InPosition` is kept
+as in the exact-stop interpolation (the next block starts at the first sample, after the rapid's
+end, at which every modelled axis is within the window); cutting blocks never wait.
 """
 from __future__ import annotations
 
@@ -34,7 +37,7 @@ import math
 import numpy as np
 
 from ..errors import InputError
-from .interpolate import AXES, Interpolation, _tangent_peaks
+from .interpolate import AXES, Interpolation, _tangent_peaks, _wait_entry, in_position_info
 
 _PLANES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
 
@@ -183,8 +186,29 @@ def _passes(caps, lim, blocks):
     return vj
 
 
-def _timeline(blocks, lim, vj, Ts, lead_in, settle):
-    """Sampled positions of the continuous timeline: (t, P, owner, spans, items)."""
+def _sample(blocks, items, N, Ts):
+    """Positions (N, 3), owners and spans of the timeline's items at k Ts, k < N."""
+    t = np.arange(N) * Ts
+    P = np.repeat(blocks[0].start[None, :], N, axis=0)
+    owner = np.full(N, -1, int)
+    spans = []
+    for ts, dur, prof, b in items:
+        k0 = int(math.floor(ts / Ts + 1e-9))
+        k1 = int(math.floor((ts + dur) / Ts + 1e-9))
+        sel = slice(k0 + 1, min(k1, N - 1) + 1)
+        if prof is not None and k1 > k0:
+            P[sel] = b.point(prof.s(t[sel] - ts))      # tau beyond the profile: its end point
+        elif k1 > k0:
+            P[sel] = b.end
+        owner[sel] = b.index
+        spans.append((k0, k1))
+    return t, P, owner, spans
+
+
+def _timeline(blocks, lim, vj, Ts, lead_in, settle, in_position=None, waits=None, notes=None):
+    """Sampled positions of the continuous timeline: (t, P, owner, spans, items). With
+    ``in_position``, the next block after a rapid starts at the first sample after the rapid's
+    end at which every axis is within the window (``waits``, ``notes``: filled)."""
     t0 = lead_in
     items = []
     v_in = 0.0
@@ -196,28 +220,30 @@ def _timeline(blocks, lim, vj, Ts, lead_in, settle):
             continue
         if lim[k] is None:
             items.append((t0, 0.0, None, b))
-            continue
-        V, A, J = lim[k]
-        prof = _Profile(b.length, v_in, vj[k], V, A, J)
-        items.append((t0, prof.duration, prof, b))
-        t0 += prof.duration
-        v_in = vj[k]
+        else:
+            V, A, J = lim[k]
+            prof = _Profile(b.length, v_in, vj[k], V, A, J)
+            items.append((t0, prof.duration, prof, b))
+            t0 += prof.duration
+            v_in = vj[k]
+        if in_position is not None and b.kind == "rapid" and k < len(blocks) - 1:
+            # the end point is first commanded at the sample after the rapid's end (k_e): the
+            # commands up to k_e, then held until every axis is within the window
+            k_e = int(math.floor(t0 / Ts + 1e-9)) + 1
+            _, P0, _, _ = _sample(blocks, items, k_e + 1, Ts)
+            P0[-1] = b.end
+            w, residual = in_position.wait(P0, Ts)
+            ts, t_end = items[-1][0], t0
+            t0 = max(t0, (k_e + w) * Ts)
+            items[-1] = (ts, t0 - ts) + items[-1][2:]
+            v_in = 0.0
+            waits.append(dict(_wait_entry(b, w, residual, Ts), wait_s=t0 - t_end))
+            note = in_position.describe(b, w, residual, Ts)
+            if note:
+                notes.append(note)
     t_end = t0
     N = int(math.floor((t_end + settle) / Ts)) + 1
-    t = np.arange(N) * Ts
-    P = np.repeat(blocks[0].start[None, :], N, axis=0)
-    owner = np.full(N, -1, int)
-    spans = []
-    for ts, dur, prof, b in items:
-        k0 = int(math.floor(ts / Ts + 1e-9))
-        k1 = int(math.floor((ts + dur) / Ts + 1e-9))
-        sel = slice(k0 + 1, k1 + 1)
-        if prof is not None and k1 > k0:
-            P[sel] = b.point(prof.s(t[sel] - ts))
-        elif k1 > k0:
-            P[sel] = b.end
-        owner[sel] = b.index
-        spans.append((k0, k1))
+    t, P, owner, spans = _sample(blocks, items, N, Ts)
     owner[spans[-1][1] + 1:] = blocks[-1].index
     P[spans[-1][1] + 1:] = blocks[-1].end
     return t, P, owner, spans, items
@@ -241,8 +267,10 @@ def _over_limits(P, limits, Ts):
     return out
 
 
-def interpolate_lookahead(program, limits, Ts, corner_angle_deg, overrides=None, lead_in=0.05, settle=0.5):
-    """Commanded positions with no stop at junctions within ``corner_angle_deg`` (module docstring).
+def interpolate_lookahead(program, limits, Ts, corner_angle_deg, overrides=None, lead_in=0.05, settle=0.5,
+                          in_position=None):
+    """Commanded positions with no stop at junctions within ``corner_angle_deg`` (module docstring;
+    ``in_position``: the wait after every rapid, as :func:`~fdid_fmi.plan.interpolate.interpolate`).
 
     Returns
     -------
@@ -286,7 +314,8 @@ def interpolate_lookahead(program, limits, Ts, corner_angle_deg, overrides=None,
     caps0 = vj.copy()
     for _ in range(_MAX_REPAIRS):
         vj = _passes(caps, lim, blocks)
-        t, P, owner, spans, items = _timeline(blocks, lim, vj, Ts, lead_in, settle)
+        waits, notes = [], []
+        t, P, owner, spans, items = _timeline(blocks, lim, vj, Ts, lead_in, settle, in_position, waits, notes)
         over = _over_limits(P, limits, Ts)
         if not over:
             break
@@ -331,4 +360,4 @@ def interpolate_lookahead(program, limits, Ts, corner_angle_deg, overrides=None,
                                               f"(tangent), exact stop at sharper corners, no blending",
                                "limits": {a: vars(l) for a, l in limits.items()},
                                "junction_velocity_mm_s": vj.tolist(), "lead_in_s": lead_in,
-                               "settle_s": settle})
+                               "settle_s": settle, **in_position_info(in_position, waits, notes)})

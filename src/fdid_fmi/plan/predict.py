@@ -284,9 +284,35 @@ def predict(interp, model=None, fmu=None, tol_mm=None, program=None):
     return pr
 
 
+def dwell_owners(blocks):
+    """{dwell block index: index of the cutting block whose settling error it shows}.
+
+    A dwell (G4) right after a cutting block (G1/G2/G3 that moves; other dwells and zero-length
+    moves in between are passed over) holds the tool at that block's end while the axes settle:
+    its contour error counts against that block (flagged there; the optimiser slows that block
+    for it). After a rapid (G0) a dwell counts against nothing: errors during and after rapids
+    are not flagged (not cutting).
+    """
+    out, last = {}, None
+    for b in blocks:
+        if b.kind == "dwell":
+            if last is not None:
+                out[b.index] = last
+        elif b.kind == "rapid":
+            last = None
+        elif b.length > 0:
+            last = b.index if b.kind in ("line", "arc") else None
+    return out
+
+
 def block_table(pr, program=None, tol_mm=None):
     """Per-block figures: line, N, kind, feed, duration, max |e| per axis and contour RMS / MAX
-    (um), flagged when the max |contour error| exceeds ``tol_mm`` (cutting blocks only)."""
+    (um), flagged when the max |contour error| exceeds ``tol_mm`` (cutting blocks only).
+
+    ``contour_max_with_dwell_um``: a cutting block's largest |contour error| over its own samples
+    and those of the dwells right after it (:func:`dwell_owners`): what its flag judges (the
+    dwell's row shows its own figure, unflagged); other blocks: their own. Errors during rapids
+    (and their in-position waits) are never flagged: the tool is not cutting."""
     ip = pr.interp
     rows = []
     blocks = program.blocks if program is not None else [None] * len(ip.spans)
@@ -310,9 +336,16 @@ def block_table(pr, program=None, tol_mm=None):
         row["contour_rms_um"] = rms(c) * 1e3 if c.size else 0.0
         row["contour_max_um"] = float(np.max(np.abs(c))) * 1e3 if c.size else 0.0
         row["contour_signed_peak_um"] = float(c[np.argmax(np.abs(c))]) * 1e3 if c.size else 0.0
-        cutting = b is None or b.kind in ("line", "arc")
-        row["flag"] = bool(tol_mm is not None and cutting and row["contour_max_um"] > tol_mm * 1e3)
+        row["contour_max_with_dwell_um"] = row["contour_max_um"]
         rows.append(row)
+    if program is not None:
+        by_index = {r["block"] - 1: r for r in rows}
+        for d, c in dwell_owners(program.blocks).items():
+            by_index[c]["contour_max_with_dwell_um"] = max(by_index[c]["contour_max_with_dwell_um"],
+                                                           by_index[d]["contour_max_um"])
+    for b, row in zip(blocks, rows):
+        cutting = b is None or b.kind in ("line", "arc")
+        row["flag"] = bool(tol_mm is not None and cutting and row["contour_max_with_dwell_um"] > tol_mm * 1e3)
     return rows
 
 

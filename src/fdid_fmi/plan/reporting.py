@@ -95,7 +95,11 @@ _BLOCK_COLS = ["block", "line", "N", "kind", "feed_mm_min", "length_mm", "durati
 
 def plan_report(program, pr, model=None, tol_mm=None, feed_plan=None, fmu=None, validation=None,
                 title=None, meta=None):
-    """:class:`~fdid_fmi.report.Report` of a prediction (and optionally of a feed optimisation)."""
+    """:class:`~fdid_fmi.report.Report` of a prediction (and optionally of a feed optimisation).
+
+    JSON ``data.feed_plan.overrides``: {block: new feed / programmed feed}, keyed by the tables'
+    ``block`` number (1-based; it was the 0-based block index before).
+    """
     rep = Report(title or f"Process plan: {program.source}", meta=meta)
     s = pr.summary
     flagged = s.get("flagged_blocks", [])
@@ -113,6 +117,13 @@ def plan_report(program, pr, model=None, tol_mm=None, feed_plan=None, fmu=None, 
     if program.notes:       # how blocks were read (block delete): as the console says them
         rep.add_text("How the program was read: " + "; ".join(f"line {r}: {w}" for r, w in program.notes[:60])
                      + ("; ..." if len(program.notes) > 60 else ""))
+    waits = pr.interp.info.get("in_position", {}).get("waits", [])
+    if waits:
+        rep.add_text(f"In-position wait after each rapid (G0) until every axis's predicted tracking error is within "
+                     f"{pr.interp.info['in_position']['window_mm'] * 1e3:.3g} µm: "
+                     + "; ".join(f"line {w['line']}: {w['wait_s']:.3f} s" for w in waits[:60])
+                     + ("; ..." if len(waits) > 60 else "") + ". "
+                     + " ".join(pr.interp.info.get("notes", [])))
     if program.ignored:
         rep.add_text("Passed over (they do not move the axes): "
                      + ", ".join(f"line {r}: {w}" for r, w in program.ignored[:60]))
@@ -124,10 +135,13 @@ def plan_report(program, pr, model=None, tol_mm=None, feed_plan=None, fmu=None, 
         path_figure(rep, "path", pr)
     error_figures(rep, "errors", pr, tol_mm)
     cols = _BLOCK_COLS + [f"{a}_max_err_um" for a in pr.axes] + ["contour_rms_um", "contour_max_um",
-                                                                  "contour_signed_peak_um", "flag"]
+                                                                  "contour_signed_peak_um",
+                                                                  "contour_max_with_dwell_um", "flag"]
     rep.add_table("blocks", [{c: r.get(c, "") for c in cols} for r in pr.blocks], columns=cols,
                   caption="per NC block: feed [mm/min], length [mm], duration [s], largest |tracking error| "
-                          "per axis and the contour error RMS / MAX / signed peak [µm]; flag = above the tolerance")
+                          "per axis and the contour error RMS / MAX / signed peak [µm]; with dwell: a cutting "
+                          "block's MAX with the dwells (G4) right after it, what its flag judges; flag = above "
+                          "the tolerance (rapids, and their in-position waits, are not flagged)")
     if feed_plan is not None:
         fpn = feed_plan
         after = fpn.after.summary
@@ -137,16 +151,19 @@ def plan_report(program, pr, model=None, tol_mm=None, feed_plan=None, fmu=None, 
             "quasi-static first pass (thesis Eqn 3.6 with each block's path-normal gains), corrected block by "
             "block with the twin. Cycle time: programmed "
             f"{fpn.before.interp.cycle_time:.3f} s (largest contour error {fpn.before.summary['contour_max_um']:.2f} µm); "
-            f"optimised {fpn.after.interp.cycle_time:.3f} s ({after['contour_max_um']:.2f} µm); one uniform feed "
-            f"override of {100 * fpn.uniform_override:.1f} % for the same tolerance: "
-            f"{fpn.uniform_cycle_time_s:.3f} s ({fpn.uniform_max_contour_um:.2f} µm). "
+            f"optimised {fpn.after.interp.cycle_time:.3f} s ({after['contour_max_um']:.2f} µm); "
+            + (f"one uniform feed override of {100 * fpn.uniform_override:.1f} % for the same tolerance: "
+               f"{fpn.uniform_cycle_time_s:.3f} s ({fpn.uniform_max_contour_um:.2f} µm). "
+               if fpn.uniform_override > 0 else "no uniform feed override meets the tolerance. ")
             + ("Every cutting block is within the tolerance." if fpn.reachable else
                "Some blocks stay above the tolerance even at the lowest override: the feed alone cannot "
                "bring them in (the axis jerk or acceleration limits set their error)."))
         rep.add_table("feeds", fpn.rows, caption="per block: programmed, first-pass and new feed [mm/min], "
                       "override [%], largest |contour error| before / after [µm], block time before / after [s]")
         path_figure(rep, "path_optimised", fpn.after, title="optimised:")
-        rep.add_data("feed_plan", {"overrides": {str(k): v for k, v in fpn.overrides.items()},
+        # overrides keyed by the tables' block number (1-based), not the 0-based block index
+        rep.add_data("feed_plan", {"overrides": {str(k + 1): v for k, v in fpn.overrides.items()},
+                                   "overrides_keyed_by": "block (1-based, as the tables' 'block' column)",
                                    "cycle_time_before_s": fpn.before.interp.cycle_time,
                                    "cycle_time_after_s": fpn.after.interp.cycle_time,
                                    "uniform_override": fpn.uniform_override,
