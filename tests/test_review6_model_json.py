@@ -340,3 +340,17 @@ def test_one_friction_input_keeps_any_positive_v_tilde():
     m = DriveModel.from_dict(d)
     r = simulate(m, {"x": _commands()["x"]}, Ts=TS)
     assert np.isfinite(r.y).all() and np.abs(r.u[:, 1]).max() <= 1.0
+
+
+def test_simulate_to_standard_output(capsys, tmp_path, model, monkeypatch):
+    """helper-59 (session 36): ``-o -`` wrote a file named '-'. Now the CSV alone goes to standard
+    output (the reader's notes and the summary line to standard error)."""
+    monkeypatch.chdir(tmp_path)
+    text = trace_csv(tmp_path / "run.csv", n=200).read_text().replace("t_s,x_cmd_mm,x_mm", "t_s,x_cmd,x_mm")
+    (tmp_path / "bare.csv").write_text(text)           # x_cmd states no unit: a note
+    code, out, err = run_cli(capsys, "simulate", model, tmp_path / "bare.csv", "-o", "-")
+    assert code == 0 and not (tmp_path / "-").exists()
+    lines = out.splitlines()
+    assert lines[0] == "t_s,x_x_pred_mm,x_e_pred_mm,y_x_pred_mm,y_e_pred_mm" and len(lines) == 201
+    assert np.isfinite(np.loadtxt(lines[1:], delimiter=",")).all()
+    assert "note: " in err and "written to standard output" in err

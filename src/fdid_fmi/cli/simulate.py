@@ -1,7 +1,9 @@
 """``fdid simulate MODEL.json TRACE -o PRED.csv``: free-run prediction from the commands."""
 from __future__ import annotations
 
+import contextlib
 import io
+import sys
 
 import numpy as np
 
@@ -20,7 +22,8 @@ def register(sub):
     p.add_argument("model", help="model JSON written by fdid identify")
     p.add_argument("trace", help="trace with the commanded positions")
     p.add_argument("-o", "--output", default="prediction.csv",
-                   help="CSV to write (default: prediction.csv; an existing file is replaced)")
+                   help="CSV to write (default: prediction.csv; an existing file is replaced; - for "
+                        "standard output)")
     p.add_argument("--at-rest", action="store_true",
                    help="start at rest even if the record starts in motion")
     add_trace_arguments(p)
@@ -41,7 +44,8 @@ def _time_digits(t):
 
 def write_prediction_csv(path, sim, axes):
     """Write ``t_s,<axis>_x_pred_mm,<axis>_e_pred_mm`` rows of one or several simulations
-    (``sim`` a result or a list of results, e.g. one per ``--range``) atomically.
+    (``sim`` a result or a list of results, e.g. one per ``--range``) atomically; ``path`` ``-``:
+    to standard output.
 
     Raises InputError when a predicted value is not finite (nothing is written then)."""
     sims = sim if isinstance(sim, (list, tuple)) else [sim]
@@ -61,18 +65,26 @@ def write_prediction_csv(path, sim, axes):
     buf = io.StringIO()
     fmt = [f"%.{_time_digits(sims[0].t)}g"] + ["%.12g"] * (len(header) - 1)
     np.savetxt(buf, data, delimiter=",", header=",".join(header), comments="", fmt=fmt)
+    if str(path) == "-":
+        sys.stdout.write(buf.getvalue())
+        return path
     return atomic_write(path, buf.getvalue())
 
 
 def run(args):
-    check_output(args.output, inputs=[args.model, args.trace], what="prediction CSV")
+    if args.output != "-":
+        check_output(args.output, inputs=[args.model, args.trace], what="prediction CSV")
     model = load_model(args.model)
-    trace = trace_from_args(args.trace, args)
+    # with the CSV on standard output the reader's notes go to standard error
+    with contextlib.redirect_stdout(sys.stderr) if args.output == "-" else contextlib.nullcontext():
+        trace = trace_from_args(args.trace, args)
     pieces = trace.select(trace.meta.get("ranges"))
     with naming(args.trace):
         sims = [simulate(model, t, start_velocity={} if args.at_rest else None) for t in pieces]
     write_prediction_csv(args.output, sims, model.axes)
     n = sum(len(r.t) for r in sims)
     what = f" in {len(sims)} ranges" if len(sims) > 1 else ""
-    print(f"prediction of {n} samples{what} for axes {model.axes} written to {args.output}")
+    print(f"prediction of {n} samples{what} for axes {model.axes} written to "
+          f"{'standard output' if args.output == '-' else args.output}",
+          file=sys.stderr if args.output == "-" else sys.stdout)     # stdout holds the CSV alone
     return 0
