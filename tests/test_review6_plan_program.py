@@ -188,7 +188,7 @@ def test_setpoints_at_another_sample_time_are_resampled_with_a_note(tmp_path, ca
     import fmu_support as fs
     from pathlib import Path
     ex = Path(__file__).resolve().parents[1] / "examples"
-    m = fs.siso_model()
+    m = fs.coupled_model()      # two axes: a one-axis twin under the circle is refused (session 36)
     assert m.Ts == 1e-3
     m.save(tmp_path / "m.json")
     assert main(["plan", str(ex / "circle.nc"), "--model", str(tmp_path / "m.json"),

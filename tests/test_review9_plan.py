@@ -212,3 +212,29 @@ def test_no_feasible_uniform_override_is_said_in_words(files, tmp_path, capsys):
     assert "no uniform override meets the tolerance" in out and "nan" not in out
     html = (tmp_path / "r.html").read_text()
     assert "no uniform feed override meets the tolerance" in html and "0.0 %" not in html
+
+
+# --- helper-59: a twin of one axis under a program in a plane -------------------------------------
+
+def _one_axis(d):
+    p = math.exp(-40.0 * TS)
+    DriveModel(TS, np.array([[p]]), np.array([[1 - p]]), np.eye(1), np.zeros((1, 1)),
+               [Port("x_cmd", "mm", "command", "x")], [Port("x_pos", "mm", "position", "x")],
+               method="one lag").save(d / "x_only.json")
+    return d / "x_only.json"
+
+
+def test_a_one_axis_twin_under_a_plane_program_is_refused_before_any_line(files, capsys):
+    """A twin of x alone under a program moving x and y reported contour 0.00 um and "every block
+    stays inside" the tolerance; --optimize printed the whole table before refusing."""
+    m = _one_axis(files)
+    for extra in ([], ["--optimize"]):
+        code, out, err = _plan(capsys, files / "rtc.nc", "--model", m, "--limits", "100,2000,1e5", "--tol", "0.01",
+                               *extra)
+        assert code == 2 and out == "" and "column 'axes'" in err and "the twin models one axis (x)" in err, err
+    (files / "x.nc").write_text("G21 G90\nG1 X10 F600\nM30\n")     # a one-axis program on it: planned
+    code, out, err = _plan(capsys, files / "x.nc", "--model", m, "--limits", "100,2000,1e5", "--tol", "0.01")
+    assert code == 0, err
+    code, out, err = _plan(capsys, files / "x.nc", "--model", m, "--limits", "100,2000,1e5", "--tol", "0.01",
+                           "--optimize")
+    assert code == 2 and out == "" and "feed optimisation needs a model of (at least) two axes" in err, err

@@ -171,6 +171,15 @@ def run(args):
         raise InputError(f"the program moves only the axes {prog.axes_used}, none of which the twin "
                          f"models (axes {axes}): there is no error to predict or feed to optimise",
                          source=args.program)
+    # a contour error needs two axes: with one, the program's path in a plane read 0.00 um and
+    # "every block stays inside" the tolerance (helper-59, session 36)
+    if len(axes) < 2 and len(prog.axes_used) >= 2:
+        raise InputError(f"the twin models one axis ({axes[0]}) of the axes the program moves "
+                         f"{prog.axes_used}: a contour error needs the path's plane; give a twin of "
+                         f"(at least) two axes", source=args.model or args.fmu, column="axes")
+    if args.optimize and len(axes) < 2:     # optimize_feeds refuses it too, after the table
+        raise InputError("feed optimisation needs a model of (at least) two axes: the contour error "
+                         "is in their plane", source=args.model or args.fmu, column="axes")
     if args.commands:
         tr = _ranged_trace(args.commands, args)
         recorded_Ts = tr.Ts
