@@ -163,6 +163,19 @@ def test_an_entry_keeps_identifys_note_on_a_swapped_command(csv_trace, tmp_path)
     assert not any("runs ahead" in n for n in res.notes)
 
 
+def test_a_missing_or_unreadable_trace_is_named_as_the_manifest_gives_it(csv_trace, tmp_path):
+    # helper-59 (session 36): "FAILED m01/y: /abs/path/night1/nosuch.csv: file not found"
+    (tmp_path / "night1").mkdir()
+    res, _ = _run(tmp_path, ENTRY.replace("a.csv", "night1/nosuch.csv") + MAP + FAST)
+    assert res.status == "failed" and res.error.startswith("night1/nosuch.csv: "), res.error
+    assert str(tmp_path) not in res.error
+    (tmp_path / "night1" / "a.csv").write_text("\n".join(csv_trace["lines"]) + "\n")
+    res, _ = _run(tmp_path, ENTRY.replace("a.csv", "night1/a.csv") + MAP.replace('"x_mm"', '"x_mmm"') + FAST,
+                  name="typo.toml")
+    assert res.status == "failed" and res.error.startswith("night1/a.csv"), res.error
+    assert str(tmp_path) not in res.error
+
+
 # ----------------------------------------------------------------------------- 6. notes in the summary
 def test_summary_prints_the_trace_notes():
     # the notes reached only fleet.json / fleet.html, not the console
