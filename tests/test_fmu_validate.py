@@ -66,6 +66,19 @@ def test_validate_detects_a_different_reference(case):
     assert any("differ" in p for p in res.problems)
 
 
+def test_a_reference_model_of_another_sample_time_is_named_not_the_trace(case):
+    """helper-59 (session 36): a wrong --model was refused as "the trace is sampled at 0.0006 s but
+    the model at 0.001 s", blaming the trace."""
+    import dataclasses
+    other = dataclasses.replace(case["model"], Ts=2 * case["model"].Ts)
+    other.save(case["dir"] / "other.json")
+    with pytest.raises(InputError) as e:
+        validate_fmu(case["fmu"], case["trace"], model=case["dir"] / "other.json")
+    msg = str(e.value)
+    assert "coupled.fmu" in msg and "the reference model" in msg and "other.json at 0.002 s" in msg, msg
+    assert "the trace is sampled" not in msg
+
+
 def test_validate_refuses_a_trace_without_the_axes(case):
     t = np.arange(100) * 1e-3
     tr = Trace.from_arrays(t, {"z": {"cmd": t, "act": t}})

@@ -339,6 +339,7 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
                          column="tolerance")
     if not isinstance(trace, Trace):
         raise InputError(f"expected a Trace, got {type(trace).__name__}", column="trace")
+    given = f"the reference model {model}" if isinstance(model, (str, Path)) else "the reference model"
     if model is None:
         model = _model_from_fmu(fmu_path)
     elif isinstance(model, (str, Path)):
@@ -348,6 +349,12 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     res = ValidationResult(fmu=str(fmu_path), tolerance_mm=tolerance_mm, n_samples=trace.n)
     md = _model_description(fmu_path)
     res.problems = [f"fmpy: {p}" for p in fmpy_validate(str(fmu_path))]
+    h = getattr(md.defaultExperiment, "stepSize", None) if md.defaultExperiment is not None else None
+    if h is not None and float(h) > 0 and abs(float(h) - model.Ts) > 1e-9 * model.Ts:
+        # before: the FMU refused every step, reported as "does it have a binary for this platform?";
+        # checked before the trace, which a wrong --model would have been blamed on (helper-59)
+        raise InputError(f"the FMU steps at {float(h):g} s (its default experiment) but {given} at "
+                         f"{model.Ts:g} s: the FMU was not exported from that model", source=str(fmu_path))
     axes = model.axes
     missing = [a for a in axes if not trace.has(a, "cmd")]
     if missing:
@@ -370,12 +377,6 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     used = list(names.values()) + [var[("v0", ak[a])] for a in axes if ("v0", ak[a]) in var] + [
         v.name for v in lay.inputs if v.role == "ext"]
     lacking = [nm for nm in used if nm not in have]
-    h = getattr(md.defaultExperiment, "stepSize", None) if md.defaultExperiment is not None else None
-    if h is not None and float(h) > 0 and abs(float(h) - model.Ts) > 1e-9 * model.Ts:
-        # before: the FMU refused every step, reported as "does it have a binary for this platform?"
-        raise InputError(f"the FMU steps at {float(h):g} s (its default experiment) but the reference "
-                         f"model and the trace at {model.Ts:g} s: it was not exported from this model",
-                         source=str(fmu_path))
     if lacking:         # before: fmpy's "no field of name ...", blamed on a missing binary
         raise InputError(f"the FMU has no variable(s) {lacking} of the reference model: it was not "
                          "exported from this model (pass the model it was exported from with --model)",
