@@ -7,11 +7,11 @@ import sys
 import numpy as np
 
 from ..errors import InputError
+from ..io.follow import follow_notes
 from ..model import DriveModel, check_name, is_play
 from ..outputs import check_output
 from . import naming
 from .argtypes import finite_float, int_in
-from ..io.follow import follow_notes
 from .mapping import add_trace_arguments, trace_from_args
 
 METHODS = ("quasi-static", "full-ls", "pole-search", "mimo")

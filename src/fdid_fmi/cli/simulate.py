@@ -72,11 +72,13 @@ def write_prediction_csv(path, sim, axes):
 
 
 def run(args):
-    if args.output != "-":
+    to_stdout = args.output == "-"
+    if not to_stdout:
         check_output(args.output, inputs=[args.model, args.trace], what="prediction CSV")
+    # with the CSV on standard output, everything else goes to standard error
+    say = sys.stderr if to_stdout else sys.stdout
     model = load_model(args.model)
-    # with the CSV on standard output the reader's notes go to standard error
-    with contextlib.redirect_stdout(sys.stderr) if args.output == "-" else contextlib.nullcontext():
+    with contextlib.redirect_stdout(say):       # the reader's notes
         trace = trace_from_args(args.trace, args)
     pieces = trace.select(trace.meta.get("ranges"))
     with naming(args.trace):
@@ -85,6 +87,5 @@ def run(args):
     n = sum(len(r.t) for r in sims)
     what = f" in {len(sims)} ranges" if len(sims) > 1 else ""
     print(f"prediction of {n} samples{what} for axes {model.axes} written to "
-          f"{'standard output' if args.output == '-' else args.output}",
-          file=sys.stderr if args.output == "-" else sys.stdout)     # stdout holds the CSV alone
+          f"{'standard output' if to_stdout else args.output}", file=say)
     return 0

@@ -35,8 +35,8 @@ A time column with no unit is read in s, but one of 16 or more samples stepping 
 more is refused (:func:`check_time_unit`): servo traces step by 0.1-10 ms, so it is in ms (1 kHz read as
 Ts = 1 s) or us; ``t_ms``, ``t [ms]`` or ``--unit t=ms`` states the unit. A stated time unit is
 read as stated, with a note (``meta["notes"]``, printed by the CLI) when it steps that slowly
-or faster than 10 us (:func:`time_step_note`); so are role columns whose names state no unit (read in the role's
-default unit, mm for positions).
+or faster than 10 us (:func:`time_step_note`); so are role columns whose names state no unit
+(read in the role's default unit, mm for positions).
 
 The tracking-error pseudo-role ``err`` is not a ``Trace`` role: the column is kept as an
 extra channel, and when an axis has ``err`` and ``act`` but no ``cmd`` (the thesis GUI
