@@ -238,3 +238,54 @@ def test_a_one_axis_twin_under_a_plane_program_is_refused_before_any_line(files,
     code, out, err = _plan(capsys, files / "x.nc", "--model", m, "--limits", "100,2000,1e5", "--tol", "0.01",
                            "--optimize")
     assert code == 2 and out == "" and "feed optimisation needs a model of (at least) two axes" in err, err
+
+
+# --- the in-position wait, stepped once along the program (session 36) ---------------------------
+
+def _reference_wait(model, P, Ts, window, cap_s):
+    """The wait as first built: the whole prefix simulated from rest, then the end point held."""
+    from fdid_fmi.simulate import simulate
+    n_cap = max(1, int(math.ceil(cap_s / Ts - 1e-9)))
+    k_e = P.shape[0] - 1
+    cmds = {a: np.concatenate([P[:, "xyz".index(a)], np.full(n_cap, P[-1, "xyz".index(a)])]) for a in model.axes}
+    res = simulate(model, cmds, Ts=Ts)
+    worst = np.max([np.abs(cmds[a][k_e:] - res.axes[a]["position"][k_e:]) for a in model.axes], axis=0)
+    inside = np.flatnonzero(worst <= window)
+    return int(inside[0]) if inside.size else n_cap
+
+
+class _ReferenceTracker:
+    """The whole prefix kept and simulated from rest at every rapid."""
+
+    def __init__(self, ip, Ts):
+        self.ip, self.Ts, self.P, self.k = ip, Ts, np.zeros((0, 3)), 0
+
+    def wait(self, P, start=0):
+        self.P = np.concatenate([self.P[:start], np.asarray(P, float)])
+        self.k = self.P.shape[0] - 1
+        n = _reference_wait(self.ip.model, self.P, self.Ts, self.ip.window_mm, self.ip.cap_s)
+        n_cap = max(1, int(math.ceil(self.ip.cap_s / self.Ts - 1e-9)))
+        return n, (None if n < n_cap else {a: 0.0 for a in self.ip.model.axes})
+
+
+@pytest.mark.parametrize("corner", [None, 1.0])
+def test_the_stepped_waits_are_those_of_a_run_of_each_prefix(corner, monkeypatch):
+    """A program's rapids (in sequence, incremental, after an arc) waited for by the twin stepped
+    once along the program give the commands that a run of each whole prefix from rest gives,
+    to the bit, on a twin with friction and cross-axis coupling."""
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).parent))
+    import fmu_support as fs
+    m = fs.coupled_model()
+    prog = parse_program("G21 G90 G17\nG0 X5 Y-3\nG1 X10 F900\nG0 X12 Y4\nG0 X2\nG3 X-2 Y4 R2 F600\n"
+                         "G91 G0 X3 Y-2\nG1 Y-4 F1200\nG90 G0 X0 Y0\nG1 X1 F300\n")
+    ip = InPosition(m, 0.002)
+    it = interpolate(prog, LIMITS, m.Ts, corner_angle_deg=corner, in_position=ip)
+    waits = [w["wait_s"] for w in it.info["in_position"]["waits"]]
+    assert len(waits) == 5 and sum(w > 0 for w in waits) >= 3, waits
+    monkeypatch.setattr(InPosition, "tracker", lambda self, Ts: _ReferenceTracker(self, Ts))
+    ref = interpolate(prog, LIMITS, m.Ts, corner_angle_deg=corner, in_position=ip)
+    assert [w["wait_s"] for w in ref.info["in_position"]["waits"]] == waits
+    for a in "xyz":
+        assert np.array_equal(it.positions[a], ref.positions[a])

@@ -186,16 +186,17 @@ def _passes(caps, lim, blocks):
     return vj
 
 
-def _sample(blocks, items, N, Ts):
-    """Positions (N, 3), owners and spans of the timeline's items at k Ts, k < N."""
-    t = np.arange(N) * Ts
-    P = np.repeat(blocks[0].start[None, :], N, axis=0)
-    owner = np.full(N, -1, int)
+def _sample(blocks, items, N, Ts, k_from=0):
+    """Positions (N - k_from, 3), owners and spans of the timeline's items at k Ts,
+    k_from <= k < N (``k_from`` > 0: ``items`` need only start with the one holding k_from)."""
+    t = np.arange(k_from, N) * Ts
+    P = np.repeat(blocks[0].start[None, :], N - k_from, axis=0)
+    owner = np.full(N - k_from, -1, int)
     spans = []
     for ts, dur, prof, b in items:
         k0 = int(math.floor(ts / Ts + 1e-9))
         k1 = int(math.floor((ts + dur) / Ts + 1e-9))
-        sel = slice(k0 + 1, min(k1, N - 1) + 1)
+        sel = slice(max(k0 + 1, k_from) - k_from, max(min(k1, N - 1) + 1 - k_from, 0))
         if prof is not None and k1 > k0:
             P[sel] = b.point(prof.s(t[sel] - ts))      # tau beyond the profile: its end point
         elif k1 > k0:
@@ -212,6 +213,8 @@ def _timeline(blocks, lim, vj, Ts, lead_in, settle, in_position=None, waits=None
     t0 = lead_in
     items = []
     v_in = 0.0
+    settling = in_position.tracker(Ts) if in_position is not None else None
+    i_from = 0
     for k, b in enumerate(blocks):
         if b.kind == "dwell":
             items.append((t0, b.block_time, None, b))
@@ -230,9 +233,12 @@ def _timeline(blocks, lim, vj, Ts, lead_in, settle, in_position=None, waits=None
             # the end point is first commanded at the sample after the rapid's end (k_e): the
             # commands up to k_e, then held until every axis is within the window
             k_e = int(math.floor(t0 / Ts + 1e-9)) + 1
-            _, P0, _, _ = _sample(blocks, items, k_e + 1, Ts)
+            # the samples since the last wait only, from the item holding them (the tracker has
+            # stepped the earlier ones)
+            _, P0, _, _ = _sample(blocks, items[i_from:], k_e + 1, Ts, k_from=settling.k)
             P0[-1] = b.end
-            w, residual = in_position.wait(P0, Ts)
+            w, residual = settling.wait(P0, start=settling.k)
+            i_from = len(items) - 1
             ts, t_end = items[-1][0], t0
             t0 = max(t0, (k_e + w) * Ts)
             items[-1] = (ts, t0 - ts) + items[-1][2:]
