@@ -45,3 +45,31 @@ def test_kernel_refuses_non_finite_outputs():
     m = fs.siso_model()
     with pytest.raises(InputError, match="finite|command"):
         simulate(m, {"x": np.array([0.0, 1.0, np.inf, 2.0] * 10)}, Ts=m.Ts)
+
+
+def test_a_copied_stepper_continues_as_the_original():
+    """Stepper.copy (the planner's in-position probe): stepped on, the copy gives the original's
+    outputs to the bit, and the original stays where it was."""
+    from fdid_fmi import kernel
+    m = fs.coupled_model()
+    st = kernel.Stepper(kernel.CompiledModel(m))
+    st.set_parameters({}, m.axes)
+    rng = np.random.default_rng(3)
+    cmds = np.cumsum(rng.normal(0.0, 0.02, (300, 2)), axis=0)
+
+    def run(s, rows, initial=False):
+        out = []
+        for k, r in enumerate(rows):
+            s.views["cmd"][:] = r
+            s.touch(initial=initial and k == 0)
+            out.append(s.outputs().copy())
+            s.advance()
+        return np.array(out)
+
+    run(st, cmds[:150], initial=True)
+    probe = st.copy()
+    held = run(probe, np.repeat(cmds[149:150], 50, axis=0))
+    assert np.array_equal(run(st.copy(), np.repeat(cmds[149:150], 50, axis=0)), held)
+    whole = kernel.Stepper(kernel.CompiledModel(m))
+    whole.set_parameters({}, m.axes)
+    assert np.array_equal(run(whole, cmds, initial=True)[150:], run(st, cmds[150:]))

@@ -254,6 +254,14 @@ class Stepper:
     def advance(self):
         _lib().fdid_advance(ct.byref(self.s))
 
+    def copy(self):
+        """A second instance of the core in this one's state (its buffer, parameters and flags):
+        stepped on, it continues as this one would, which stays where it is."""
+        other = Stepper(self.cm)
+        other._buf[:] = self._buf
+        ct.memmove(ct.addressof(other.s.f), ct.addressof(self.s.f), ct.sizeof(self.s.f))
+        return other
+
 
 def run(compiled, cmds, exts, v0, params=None):
     """Free run of a record through the C core (``fdid_run``).

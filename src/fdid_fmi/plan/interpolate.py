@@ -36,7 +36,6 @@ A user who has the controller's own interpolated setpoints (a trace) passes them
 """
 from __future__ import annotations
 
-import ctypes as ct
 import math
 from dataclasses import dataclass, field
 
@@ -227,9 +226,7 @@ class _Settling:
         for k in range(self.k, k_e):
             self._step(self.st, P[k - start], initial=k == 0)
         self.k = k_e
-        probe = self._stepper()          # the state at k_e, then the end point held
-        probe._buf[:] = self.st._buf
-        ct.memmove(ct.addressof(probe.s.f), ct.addressof(self.st.s.f), ct.sizeof(self.st.s.f))
+        probe = self.st.copy()           # the state at k_e, then the end point held
         n_cap = max(1, int(math.ceil(self.ip.cap_s / self.Ts - 1e-9)))
         for w in range(n_cap + 1):
             err = self._step(probe, P[-1], initial=k_e == 0 and w == 0)
