@@ -289,3 +289,17 @@ def test_the_stepped_waits_are_those_of_a_run_of_each_prefix(corner, monkeypatch
     assert [w["wait_s"] for w in ref.info["in_position"]["waits"]] == waits
     for a in "xyz":
         assert np.array_equal(it.positions[a], ref.positions[a])
+
+
+def test_the_optimisation_line_judges_the_cutting_blocks_not_the_rapids(files, tmp_path, capsys):
+    """A whole-program contour MAX above the tolerance was printed beside the optimised feeds when
+    it came from a rapid (not judged): 21.64 um at tol 20 on a 1000-block program whose cutting
+    blocks were all within it (session 36)."""
+    nc = tmp_path / "rapids.nc"
+    nc.write_text("G21 G90 G17\nG0 X40 Y25\nG1 X41 F300\nG0 X0 Y0\nG1 Y1 F300\n")
+    code, out, _ = _plan(capsys, nc, "--model", files / "fast.json", "--limits", "100,2000,1e5", "--tol", "0.02",
+                         "--optimize")
+    line = next(ln for ln in out.splitlines() if ln.startswith("feed optimisation ("))
+    cut = float(line.split("contour MAX ")[1].split(" µm on the cutting blocks")[0])
+    rapid = float(line.split("µm on the cutting blocks, ")[1].split(" µm during rapids, not judged")[0])
+    assert code == 0 and cut <= 20.0 < rapid, line

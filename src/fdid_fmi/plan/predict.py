@@ -305,6 +305,14 @@ def dwell_owners(blocks):
     return out
 
 
+def cutting_contour_max_um(pr):
+    """The largest |contour error| (um) the tolerance judges: over the cutting blocks (lines and
+    arcs) and the dwells after them (``contour_max_with_dwell_um``); rapids are not judged. 0
+    when the program cuts nothing."""
+    return max((r["contour_max_with_dwell_um"] for r in pr.blocks if r.get("kind") in ("line", "arc")),
+               default=0.0)
+
+
 def block_table(pr, program=None, tol_mm=None):
     """Per-block figures: line, N, kind, feed, duration, max |e| per axis and contour RMS / MAX
     (um), flagged when the max |contour error| exceeds ``tol_mm`` (cutting blocks only).
