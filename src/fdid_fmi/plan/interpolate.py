@@ -147,23 +147,11 @@ class InPosition:
             raise InputError(f"the model's axes {bad} are not x, y or z", column="axes")
         self.model, self.window_mm, self.cap_s = model, float(window_mm), float(cap_s)
 
-    def wait(self, P, Ts):
-        """In-position wait after commanded samples ``P`` ((k_e + 1, 3) mm, x y z; the last row
-        the rapid's end point, first commanded at k_e), simulated from rest (one run of the whole
-        prefix; :meth:`tracker` runs a program's prefixes once in all).
-
-        Returns
-        -------
-        (w, residual) : samples to hold the end point, and None when the window is reached
-        (else {axis: |error| at the end of the cap, mm})
-        """
-        return self.tracker(Ts).wait(P)
-
     def tracker(self, Ts):
-        """A :class:`_Settling` for one interpolation: its ``wait(P)`` takes the growing prefixes
-        of one program, and steps the twin over each new part only (the waits are those of
-        :meth:`wait`; linear, where a run of each prefix was quadratic in the program's length:
-        400 rapids 41 s against 3.4 s without waits, session 36)."""
+        """A :class:`_Settling` for one interpolation: its ``wait`` takes the commands of one
+        program as they grow, and steps the twin over each new part only (the waits of a run of
+        each whole prefix from rest, which was quadratic in the program's length: 400 rapids 41 s
+        against 3.4 s without waits, session 36)."""
         return _Settling(self, Ts)
 
     def describe(self, block, w, residual, Ts):
@@ -216,9 +204,14 @@ class _Settling:
 
     def wait(self, P, start=0):
         """The wait after the commanded samples ``P`` (rows: samples ``start`` .. k_e, x y z mm;
-        the last the rapid's end point), as :meth:`InPosition.wait` of the whole prefix. The
-        samples before ``start`` are those of the earlier calls (``start`` at most the last
-        call's k_e: only the new part is passed and stepped)."""
+        the last the rapid's end point): the class docstring of :class:`InPosition` applied to
+        the whole prefix. The samples before ``start`` are those of the earlier calls (``start``
+        at most the last call's k_e: only the new part is passed and stepped).
+
+        Returns
+        -------
+        (w, residual) : samples to hold the end point, and None when the window is reached
+        (else {axis: |error| at the end of the cap, mm})"""
         P = np.asarray(P, float)
         k_e = start + P.shape[0] - 1
         if not start <= self.k <= k_e:
