@@ -141,6 +141,7 @@ def run(args):
     from ..model import DriveModel, load_model
     from ..plan import read_program
     from ..plan.interpolate import IN_POSITION_MM, InPosition, commands_from_trace, interpolate
+    from ..plan.optimize import check_optimisable
     from ..plan.predict import cutting_contour_max_um, fmu_axes, model_from_fmu, predict
     from ..simulate import fits_sample_time
     from ..plan.reporting import plan_report
@@ -177,9 +178,8 @@ def run(args):
         raise InputError(f"the twin models one axis ({axes[0]}) of the axes the program moves "
                          f"{prog.axes_used}: a contour error needs the path's plane; give a twin of "
                          f"(at least) two axes", source=args.model or args.fmu, column="axes")
-    if args.optimize and len(axes) < 2:     # optimize_feeds refuses it too, after the table
-        raise InputError("feed optimisation needs a model of (at least) two axes: the contour error "
-                         "is in their plane", source=args.model or args.fmu, column="axes")
+    if args.optimize:       # optimize_feeds checks it too, after the table
+        check_optimisable(axes, source=args.model or args.fmu)
     if args.commands:
         tr = _ranged_trace(args.commands, args)
         recorded_Ts = tr.Ts

@@ -57,6 +57,14 @@ from .ncprogram import Program, parse_program, write_program
 from .predict import dwell_owners, predict
 
 
+def check_optimisable(axes, source=None):
+    """InputError unless the twin's ``axes`` span a plane: the feeds are set by the contour error,
+    which is measured there (``fdid plan`` checks it before printing its table)."""
+    if len(axes) < 2:
+        raise InputError("feed optimisation needs a model of (at least) two axes: the contour error "
+                         "is in their plane", source=source, column="axes")
+
+
 def quasi_static_gains(model, axes=None):
     """K_vel [s], K_acc [s^2], K_jerk [s^3] of each axis from a DriveModel's linear part.
 
@@ -288,9 +296,7 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
         else:
             qs = quasi_static_gains(model)
     axes = list(qs.axes)
-    if len(axes) < 2:
-        raise InputError("feed optimisation needs a model of (at least) two axes: the contour error "
-                         "is in their plane", column="axes")
+    check_optimisable(axes)
 
     def run(ov, prog=None):
         tick()
