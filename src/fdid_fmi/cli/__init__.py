@@ -23,6 +23,7 @@ import itertools
 import os
 import sys
 import traceback
+from pathlib import Path
 
 from ..errors import FdidError, InputError
 from ..workers import one_blas_thread
@@ -116,13 +117,15 @@ def _parse(parser, argv):
 
 
 @contextlib.contextmanager
-def naming(source):
-    """Inside this block, an InputError that names no file is re-raised naming ``source``
-    (e.g. a model refused by export names the model file it came from)."""
+def naming(source, replaces=None):
+    """Inside this block, an InputError that names no file (or names ``replaces``: the path a
+    reader resolved from what the user wrote) is re-raised naming ``source`` (e.g. a model
+    refused by export names the model file it came from)."""
     try:
         yield
     except InputError as exc:
-        if exc.source or source is None:
+        named = exc.source and not (replaces is not None and Path(str(exc.source)) == Path(replaces))
+        if named or source is None:
             raise
         raise InputError(exc.message, source=str(source), column=exc.column, row=exc.row) from None
 

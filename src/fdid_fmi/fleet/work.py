@@ -276,13 +276,9 @@ def _read_traces(spec: EntrySpec, notes=None):
         args = identify_args(p, spec)
         if k:       # 'range' selects data of the identification trace; the held-out ones are whole
             args.range = []
-        try:
-            with naming(spec.trace_name(k)):
-                tr = trace_from_args(p, args, notes=False)      # kept in EntryResult.notes
-        except InputError as exc:   # the reader names the resolved path; the manifest's words are wanted
-            if exc.source is None or Path(str(exc.source)) != Path(p):
-                raise
-            raise InputError(exc.message, source=spec.trace_name(k), column=exc.column, row=exc.row) from None
+        # the reader names the resolved path; the manifest's words are wanted
+        with naming(spec.trace_name(k), replaces=p):
+            tr = trace_from_args(p, args, notes=False)      # kept in EntryResult.notes
         if notes is not None:
             said = tr.meta.get("notes", []) + (follow_notes(tr, [spec.axis]) if k == 0 else [])
             notes += [manifest_words(f"{spec.trace_name(k)}: {n}") for n in said]
