@@ -11,12 +11,12 @@ import math
 import numpy as np
 import pytest
 
-from fdid_fmi.cli import main
 from fdid_fmi.model import DriveModel, Port
 from fdid_fmi.plan.interpolate import AxisLimits, InPosition, interpolate
 from fdid_fmi.plan.ncprogram import parse_program, write_program
 from fdid_fmi.plan.optimize import optimize_feeds
 from fdid_fmi.plan.predict import predict
+from cli_support import run_cli
 
 TS = 1e-3
 LIMITS = {a: AxisLimits(100, 2000, 1e5) for a in "xyz"}
@@ -60,9 +60,7 @@ def files(tmp_path_factory):
 
 
 def _plan(capsys, *args):
-    code = main(["plan", *[str(a) for a in args]])
-    out, err = capsys.readouterr()
-    return code, out, err
+    return run_cli(capsys, "plan", *args)
 
 
 def _rows(out):

@@ -12,6 +12,7 @@ from fdid_fmi.cli import main
 from fdid_fmi.errors import InputError
 from fdid_fmi.model import DriveModel, Port
 from fdid_fmi.plan.ncprogram import parse_program, read_program, write_program
+from cli_support import run_cli
 
 TS = 1e-3
 LIMITS = "100,2000,1e5"
@@ -35,9 +36,7 @@ def model_xy(tmp_path_factory):
 
 
 def _plan(capsys, *args):
-    code = main(["plan", *[str(a) for a in args]])
-    out, err = capsys.readouterr()
-    return code, out, err
+    return run_cli(capsys, "plan", *args)
 
 
 # --- 1: the CSV's commands reproduce its prediction ----------------------------------------------
