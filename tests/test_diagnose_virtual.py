@@ -172,12 +172,13 @@ def test_asymmetric_coulomb_under_a_structure_with_integral_action():
 
 
 @pytest.mark.parametrize("name, delayed", [("delay", True), ("clean_soft", False)])
-def test_dead_time_statistic_separates_a_delay_from_its_clean_twin(name, delayed):
-    """The dead-time statistic (``delay.py``: the residual's early answer to the command, with
-    the command shifted) on the thesis-path model: the 3-sample recording delay passes its gate,
-    the same soft loop on the same kind of moves without it does not. On this 3-pole model the
-    loop then keeps one more pole rather than the dead time (the order check); ``fdid
-    identify``'s default structure names it, 3 samples (README)."""
+def test_dead_time_statistics_separate_a_delay_from_its_clean_twin(name, delayed):
+    """Both dead-time statistics (``delay.py``: the residual's early answer to the command, and
+    the refined refits' free run, with the command shifted) on the thesis-path model: the
+    3-sample recording delay passes both gates, the same soft loop on the same kind of moves
+    without it passes neither. On this 3-pole model the loop then keeps one more pole rather than
+    the dead time (the order check); ``fdid identify``'s default structure names it, 3 samples
+    (README)."""
     from fdid_fmi.diagnose import augment as ag, delay
     from fdid_fmi.diagnose.base import Context
     from fdid_fmi.diagnose.residuals import residuals
@@ -187,14 +188,22 @@ def test_dead_time_statistic_separates_a_delay_from_its_clean_twin(name, delayed
         m = identify_siso(tr, axis="x", maxiter=30)
         ctx = Context(model=m, recipe=ag.recipe_from_model(m), train=ag.model_velocity_traces(m, [tr]),
                       res=[residuals(m, tr)], settings={"maxiter": 20})
-        (c,) = delay.detect(ctx)
-    chi2 = c.evidence["early_response_chi2_by_shift"]
+        early, free = delay.detect(ctx)
+    chi2 = early.evidence["early_response_chi2_by_shift"]
+    assert free.threshold == pytest.approx(1 / 0.95) and free.from_current and free.search == "local"
     if delayed:     # measured: statistic 176, 4 samples (chi-square 1014 at no shift, 5.8 at 4)
-        assert c.detected and c.statistic > 20 * delay.RATIO
-        assert c.params["samples"] in (3, 4)
+        assert early.detected and early.statistic > 20 * delay.RATIO
+        assert early.params["samples"] in (3, 4)
+        # measured: 1.37 at 3 samples (free run 0.384 um without a shift, 0.280 at 3)
+        assert free.detected and free.params["samples"] in (3, 4)
+        if free.params == early.params:     # one shift, one trial
+            assert free.recipe is None
+        else:
+            assert free.recipe.delays == {"x": free.params["samples"]}
     else:           # measured: 1.0, no shift helps (5.8 at no shift, 11 at one sample)
-        assert not c.detected and c.params["samples"] == 0
+        assert not early.detected and early.params["samples"] == 0
         assert min(chi2[1:]) > chi2[0]
+        assert not free.detected            # measured: 1.0, 0.276 um without a shift, 0.280 at one
 
 
 def test_a_heavily_damped_pair_is_not_named_a_mode():

@@ -42,6 +42,8 @@ class Candidate:
     params : estimated parameters (e.g. ``frequency_hz``, ``samples``, ``period_mm``, ``channel``)
     recipe : augmented :class:`~.augment.Recipe` to refit (None when not detected)
     search : refit search of the engine for this effect (``local`` or ``wide``)
+    from_current : the refit (and its reference's) starts from the current poles, as the
+           detector's own refit that found the effect did
     evidence : further numbers for the report
     plot : data for a figure of the evidence (dict of arrays), optional
     reference : Recipe, optional -- what the effect must beat besides the current model (e.g. a
@@ -58,6 +60,7 @@ class Candidate:
     params: dict = field(default_factory=dict)
     recipe: object = None
     search: str = "local"
+    from_current: bool = False
     evidence: dict = field(default_factory=dict)
     plot: dict = field(default_factory=dict)
     note: str = ""

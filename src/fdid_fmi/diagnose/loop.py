@@ -591,7 +591,7 @@ def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0
         say(f"round {step + 1}: null refit and {len(detected)} trial refit(s)")
         null_fit = refits.submit(ag.fit, recipe, vel_train, search="local", maxiter=maxiter)
         fits = [[refits.submit(ag.fit, r, vel_train, search=c.search, maxiter=maxiter,
-                               refine=c.search != "locked") if r is not None else None
+                               refine=c.search != "locked", from_current=c.from_current) if r is not None else None
                  for r in (c.recipe, c.reference)] for c in detected]
         try:
             null = null_fit.result()

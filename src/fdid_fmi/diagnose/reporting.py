@@ -142,6 +142,13 @@ def _evidence_figure(cand):
                     label="chi-square of the residual's early answer")
         ax.set_xlabel("command shift [samples]")
         ax.set_ylabel("chi-square [-] (training)")
+        if "refined_free_run_um" in p:
+            ax2 = ax.twinx()
+            ax2.plot(np.asarray(p["shift"]), np.asarray(p["refined_free_run_um"]), "s--", color="tab:orange",
+                     label="free-run RMS, refined refits")
+            ax2.set_ylabel("free-run RMS [µm] (training)")
+            ax.legend(*(a + b for a, b in zip(ax.get_legend_handles_labels(), ax2.get_legend_handles_labels())),
+                      fontsize=8, loc="best")
     else:
         plt.close(fig)
         return None, None
