@@ -177,13 +177,15 @@ def identification(name):
 
 
 def _max_by_kind(summaries):
-    """Largest statistic / threshold ratio per effect kind among candidate summaries."""
+    """Largest statistic / threshold ratio per effect kind (per statistic, where a kind has two:
+    ``delay (early answer)``) among candidate summaries."""
     out = {}
     for c in summaries:
         thr = c["threshold"]
         r = c["statistic"] / thr if thr and np.isfinite(c["statistic"]) else float("nan")
-        if c["kind"] not in out or (np.isfinite(r) and not r <= out[c["kind"]]["ratio"]):
-            out[c["kind"]] = {"ratio": r, "statistic": c["statistic"], "threshold": thr}
+        key = c.get("label", c["kind"])     # a kind with two statistics (delay) keeps both
+        if key not in out or (np.isfinite(r) and not r <= out[key]["ratio"]):
+            out[key] = {"ratio": r, "statistic": c["statistic"], "threshold": thr}
     return out
 
 
@@ -299,7 +301,7 @@ def calibration(quick, plant2_diag):
                     continue
                 fa = [r["scenario"] for r in runs if r["plant"] == meas and r["expected"] is None
                       and kind in r["stats"] and r["stats"][kind]["ratio"] >= t]
-                eff = [r for r in runs if r["plant"] == meas and r["expected"] == kind]
+                eff = [r for r in runs if r["plant"] == meas and r["expected"] == kind.split(" (")[0]]
                 hits = [r["scenario"] for r in eff if kind in r["stats"] and r["stats"][kind]["ratio"] >= t]
                 row[f"{cal}->{meas}:{tname}"] = {"threshold_ratio": t, "false_alarms": fa,
                                                  "n_clean": row[f"n_clean_{meas}"], "hits": hits,

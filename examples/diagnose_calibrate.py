@@ -59,8 +59,8 @@ def statistics(m, tr):
     for mod in DETECTORS.values():
         for c in mod.detect(ctx):
             s = float(c.statistic) if np.isfinite(c.statistic) else float("nan")
-            if c.kind not in out or s > out[c.kind][0]:
-                out[c.kind] = (s, float(c.threshold))
+            if c.label not in out or s > out[c.label][0]:
+                out[c.label] = (s, float(c.threshold))
     out["suspected (note)"] = (max(friction.concentration(ctx.res, a, m.Ts) for a in m.axes), REVERSAL_SUSPECT)
     return out
 
@@ -114,7 +114,7 @@ def transfer_table(runs):
             t = MARGIN * mx[cal]
             clean = [r for r in runs if r["plant"] == meas and r["expected"] is None and kind in r["stats"]]
             fa = [f"{r['scenario']}/{r['seed']}" for r in clean if r["stats"][kind][0] >= t]
-            eff = [r for r in runs if r["plant"] == meas and r["expected"] == kind and kind in r["stats"]]
+            eff = [r for r in runs if r["plant"] == meas and r["expected"] == kind.split(" (")[0] and kind in r["stats"]]
             hits = ", ".join(f"{r['scenario']}: {r['stats'][kind][0]:.3g}" + (" HIT" if r["stats"][kind][0] >= t else "")
                              for r in eff) or "—"
             f = lambda x: "—" if x is None else f"{x:.3g}"  # noqa: E731

@@ -39,6 +39,8 @@ class Candidate:
            ``periodic_position``, ``coupling``, ``extra_input``)
     axis : axis it belongs to
     statistic, threshold : evidence; ``detected = statistic >= threshold``
+    statistic_name : which statistic, where a kind has more than one (``delay``: ``early answer``,
+           ``refined free run``); ``label`` names the candidate's statistic in calibration tables
     params : estimated parameters (e.g. ``frequency_hz``, ``samples``, ``period_mm``, ``channel``)
     recipe : augmented :class:`~.augment.Recipe` to refit (None when not detected)
     search : refit search of the engine for this effect (``local`` or ``wide``)
@@ -61,6 +63,7 @@ class Candidate:
     recipe: object = None
     search: str = "local"
     from_current: bool = False
+    statistic_name: str = ""
     evidence: dict = field(default_factory=dict)
     plot: dict = field(default_factory=dict)
     note: str = ""
@@ -68,11 +71,15 @@ class Candidate:
     not_checked: str = ""
 
     @property
+    def label(self):
+        return f"{self.kind} ({self.statistic_name})" if self.statistic_name else self.kind
+
+    @property
     def detected(self):
         return bool(not self.not_checked and np.isfinite(self.statistic) and self.statistic >= self.threshold)
 
     def summary(self):
-        d = {"kind": self.kind, "axis": self.axis, "statistic": float(self.statistic),
+        d = {"kind": self.kind, "label": self.label, "axis": self.axis, "statistic": float(self.statistic),
              "threshold": float(self.threshold), "detected": self.detected,
              "params": self.params, "evidence": self.evidence, "note": self.note}
         if self.not_checked:

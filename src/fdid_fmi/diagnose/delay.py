@@ -233,10 +233,10 @@ def detect(ctx):
         X, F, R = _profiles(ctx, a, kmax, maxiter)
         evidence = {"early_response_chi2_by_shift": X.tolist(), "free_run_rms_um_by_shift": F.tolist(),
                     "refined_free_run_rms_um_by_shift": R.tolist(), "xcorr_peak_lag": int(lag), "xcorr_peak": rho}
-        early = _candidate(ctx, a, X, RATIO, "wide", evidence,
+        early = _candidate(ctx, a, X, RATIO, "early answer", "wide", evidence,
                            "chi-square of the residual's early response to the command, without / with "
                            "the best command shift")
-        free = _candidate(ctx, a, R, FREE_RUN_RATIO, "local", evidence,
+        free = _candidate(ctx, a, R, FREE_RUN_RATIO, "refined free run", "local", evidence,
                           "training free-run RMS of the refined refits, without / with the best command "
                           "shift (a shift must win by the structure choice's parsimony margin)")
         free.from_current = True        # the trial is the refit that showed the shift
@@ -257,10 +257,10 @@ def _finite(profile):
     return np.where(np.isfinite(profile), profile, np.nan)
 
 
-def _candidate(ctx, a, profile, threshold, search, evidence, note):
+def _candidate(ctx, a, profile, threshold, name, search, evidence, note):
     """A delay candidate from a profile over command shifts (:func:`shift_statistic`)."""
     k_star, stat, edge = shift_statistic(profile)
-    cand = Candidate("delay", a, stat, threshold, params={"samples": k_star},
+    cand = Candidate("delay", a, stat, threshold, params={"samples": k_star}, statistic_name=name,
                      evidence=dict(evidence, best_shift_on_range_edge=edge),
                      search=search, note=note)
     if cand.detected:
