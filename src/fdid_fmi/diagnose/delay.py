@@ -233,13 +233,14 @@ def detect(ctx):
         X, F, R = _profiles(ctx, a, kmax, maxiter)
         evidence = {"early_response_chi2_by_shift": X.tolist(), "free_run_rms_um_by_shift": F.tolist(),
                     "refined_free_run_rms_um_by_shift": R.tolist(), "xcorr_peak_lag": int(lag), "xcorr_peak": rho}
-        early = _candidate(ctx, a, X, RATIO, "early answer", "wide", evidence,
+        early = _candidate(ctx, a, X, RATIO, "early answer", evidence,
                            "chi-square of the residual's early response to the command, without / with "
-                           "the best command shift")
-        free = _candidate(ctx, a, R, FREE_RUN_RATIO, "refined free run", "local", evidence,
+                           "the best command shift", search="wide")
+        # its trial is the refit that showed the shift
+        free = _candidate(ctx, a, R, FREE_RUN_RATIO, "refined free run", evidence,
                           "training free-run RMS of the refined refits, without / with the best command "
-                          "shift (a shift must win by the structure choice's parsimony margin)")
-        free.from_current = True        # the trial is the refit that showed the shift
+                          "shift (a shift must win by the structure choice's parsimony margin)",
+                          search="local", from_current=True)
         if not np.isfinite(F[1:]).any() and not np.isfinite(R[1:]).any():
             early.not_checked = free.not_checked = ("the model could not be refitted with any shift of the command "
                                                     "(no feasible model)")
@@ -257,12 +258,12 @@ def _finite(profile):
     return np.where(np.isfinite(profile), profile, np.nan)
 
 
-def _candidate(ctx, a, profile, threshold, name, search, evidence, note):
-    """A delay candidate from a profile over command shifts (:func:`shift_statistic`)."""
+def _candidate(ctx, a, profile, threshold, name, evidence, note, **trial):
+    """A delay candidate from a profile over command shifts (:func:`shift_statistic`); ``trial``:
+    its refit's ``search`` and ``from_current``."""
     k_star, stat, edge = shift_statistic(profile)
     cand = Candidate("delay", a, stat, threshold, params={"samples": k_star}, statistic_name=name,
-                     evidence=dict(evidence, best_shift_on_range_edge=edge),
-                     search=search, note=note)
+                     evidence=dict(evidence, best_shift_on_range_edge=edge), note=note, **trial)
     if cand.detected:
         cand.recipe = ag.add_delay(ctx.recipe, a, k_star)
         # one sample of delay is what separates the hold and quadratic same-sample forms of a
