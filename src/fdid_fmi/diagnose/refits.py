@@ -1,7 +1,7 @@
 """A diagnosis's independent refits, side by side in worker processes.
 
 Most of a diagnosis's time is refits that do not depend on each other: the dead time's command
-shifts (two searches per shift), the Stribeck velocity's grid and the play's widths, and each
+shifts (three refits per shift), the Stribeck velocity's grid and the play's widths, and each
 round's null refit and candidate trials with their references. :class:`Refits` runs them in
 ``workers`` processes (:func:`fdid_fmi.workers.process_pool`: the platform's start method, one
 BLAS thread per worker, the same kind of pool as ``fdid identify``'s structure choice) or, with one
