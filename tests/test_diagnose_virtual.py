@@ -176,9 +176,8 @@ def test_dead_time_statistics_separate_a_delay_from_its_clean_twin(name, delayed
     """Both dead-time statistics (``delay.py``: the residual's early answer to the command, and
     the refined refits' free run, with the command shifted) on the thesis-path model: the
     3-sample recording delay passes both gates, the same soft loop on the same kind of moves
-    without it passes neither. On this 3-pole model the loop then keeps one more pole rather than
-    the dead time (the order check); ``fdid identify``'s default structure names it, 3 samples
-    (README)."""
+    without it passes neither. On this 3-pole model the early answer's shift loses to one more
+    pole held out (the order check); the free run's, 3 samples, is kept (README, session 37)."""
     from fdid_fmi.diagnose import augment as ag, delay
     from fdid_fmi.diagnose.base import Context
     from fdid_fmi.diagnose.residuals import residuals
@@ -211,10 +210,11 @@ def test_a_heavily_damped_pair_is_not_named_a_mode():
     heavily damped pair can act as a Padé approximant of a dead time: on the 3-sample recording
     delay the mode's refit was kept (190 Hz, damping 0.47; held out 11 % better than the better of
     the null refit and one more real pole). A mode is a resonance (``base.MODE_MAX_DAMPING``: a
-    3 dB peak), so that refit is implausible and nothing is named; the order note stays."""
+    3 dB peak), so that refit is implausible and no mode is named; the order note stays. Since
+    session 37 the dead time itself is kept (the refined refits' free run, 3 samples)."""
     from fdid_fmi.diagnose.base import MODE_MAX_DAMPING
     d, _ = _run("delay", detectors=["mode", "delay"], max_steps=1)
-    assert d.effects_added == []
+    assert [(e["kind"], e.get("samples")) for e in d.effects_added] == [("delay", 3)]
     (mode,) = [t for r in d.rounds for t in r["trials"] if t["kind"] == "mode"]
     assert mode["criterion_met"] and mode["fitted"]["damping"] > MODE_MAX_DAMPING
     assert "not lightly damped" in mode["implausible"]

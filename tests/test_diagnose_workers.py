@@ -24,9 +24,8 @@ def _summary(d):
 def test_two_workers_give_the_same_diagnosis_as_one():
     # the delay scenario exercises every parallel path: the dead time's shifts, the Stribeck
     # velocity's grid in both friction laws and the play's widths, the null refit and three trials
-    # (the play law's and the dead time's with their references); nothing is kept there (the
-    # order check wins, README), so the whole first round is compared. Few search iterations: the
-    # property does not need converged searches
+    # (the play law's and the dead time's with their references); the whole first round is
+    # compared. Few search iterations: the property does not need converged searches
     tr, va = scenario("delay")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
