@@ -245,8 +245,8 @@ def detect(ctx):
             early.not_checked = free.not_checked = ("the model could not be refitted with any shift of the command "
                                                     "(no feasible model)")
         elif np.isnan(X).all():
-            early.not_checked = (f"the training trace is too short for the residual's response over "
-                                 f"{fir_length(ctx.Ts, 2 * kmax)} samples")
+            early.not_checked = (f"the training trace is too short for the residual's early answer over "
+                                 f"{fir_length(ctx.Ts, 2 * kmax)} samples (the refined free run was checked)")
         early.plot = {"shift": np.arange(kmax + 1), "objective": _finite(X), "refined_free_run_um": _finite(R)}
         if early.detected and free.detected and early.params == free.params:
             free.recipe = None      # one shift, one trial
