@@ -8,6 +8,7 @@ lower the held-out RMS by at least the keep criterion (5 %); on clean data nothi
 import json
 import warnings
 
+import numpy as np
 import pytest
 
 from fdid_fmi.diagnose import diagnose
@@ -202,6 +203,7 @@ def test_dead_time_statistics_separate_a_delay_from_its_clean_twin(name, delayed
     else:           # measured: 1.0, no shift helps (5.8 at no shift, 11 at one sample)
         assert not early.detected and early.params["samples"] == 0
         assert min(chi2[1:]) > chi2[0]
+        assert np.isfinite(free.evidence["refined_free_run_rms_um_by_shift"]).all() and not free.not_checked
         assert not free.detected            # measured: 1.0, 0.276 um without a shift, 0.280 at one
 
 

@@ -16,8 +16,9 @@ current poles with the engine's friction refinement, as the given model was fitt
 training free-run RMS (R_0 also the given model's), the statistic R_0 / R_k* with the same rule.
 A dead time is one more structural parameter: like a structure with more parameters in the
 structure choice it must lower the free run by the ``PARSIMONY`` margin (gate 1 / (1 - 0.05)),
-and its trial refit is that same local fit. Each statistic is a candidate of its own (one trial
-when both name the same shift).
+and its trial refit is that same local fit. Each statistic is a candidate of its own; when both
+name the same shift there is one trial, the early answer's (a wide search, as before session 37:
+the virtual drive's default path is measured with it).
 
 Why both. The early answer was built (session 27) when the free run of quick refits separated
 nothing (virtual clean up to 1.095, its 3-sample delay 1.05-1.09; plant2 clean up to 1.14, its
@@ -241,15 +242,17 @@ def detect(ctx):
                           "training free-run RMS of the refined refits, without / with the best command "
                           "shift (a shift must win by the structure choice's parsimony margin)",
                           search="local", from_current=True)
-        if not np.isfinite(F[1:]).any() and not np.isfinite(R[1:]).any():
-            early.not_checked = free.not_checked = ("the model could not be refitted with any shift of the command "
-                                                    "(no feasible model)")
+        infeasible = "the model could not be refitted with any shift of the command (no feasible model)"
+        if not np.isfinite(F[1:]).any():
+            early.not_checked = infeasible
         elif np.isnan(X).all():
             early.not_checked = (f"the training trace is too short for the residual's early answer over "
-                                 f"{fir_length(ctx.Ts, 2 * kmax)} samples (the refined free run was checked)")
+                                 f"{fir_length(ctx.Ts, 2 * kmax)} samples")
+        if not np.isfinite(R[1:]).any():
+            free.not_checked = infeasible
         early.plot = {"shift": np.arange(kmax + 1), "objective": _finite(X), "refined_free_run_um": _finite(R)}
         if early.detected and free.detected and early.params == free.params:
-            free.recipe = None      # one shift, one trial
+            free.recipe = None      # one shift, one trial: the early answer's (wide search), as before
         out += [early, free]
     return out
 

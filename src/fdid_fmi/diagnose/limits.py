@@ -258,8 +258,12 @@ def held_out_unlike(before, split=False, unseen=()):
 
 def not_checked(candidates):
     """Notes for the candidates (:class:`.base.Candidate`) whose detector could not run on the
-    data (``Candidate.not_checked``), one per effect kind and axis."""
-    notes, seen = [], set()
+    data (``Candidate.not_checked``), one per effect kind and axis; none where another
+    statistic of the kind checked it (the dead time's free run on a trace too short for its
+    early answer)."""
+    candidates = list(candidates)
+    checked = {(c.kind, c.axis) for c in candidates if not c.not_checked}
+    notes, seen = [], set(checked)
     for c in candidates:
         if c.not_checked and (c.kind, c.axis) not in seen:
             seen.add((c.kind, c.axis))

@@ -590,6 +590,10 @@ def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0
         # reference is refitted even when its trial's refit fails, which is rare)
         say(f"round {step + 1}: null refit and {len(detected)} trial refit(s)")
         null_fit = refits.submit(ag.fit, recipe, vel_train, search="local", maxiter=maxiter)
+        # a trial started from the current poles must also beat the same structure refitted from
+        # them: without a held-out trace those poles were fitted on the part it is judged on
+        null_cur_fit = (refits.submit(ag.fit, recipe, vel_train, search="local", maxiter=maxiter, from_current=True)
+                        if any(c.from_current for c in detected) else None)
         fits = [[refits.submit(ag.fit, r, vel_train, search=c.search, maxiter=maxiter,
                                refine=c.search != "locked", from_current=c.from_current) if r is not None else None
                  for r in (c.recipe, c.reference)] for c in detected]
@@ -599,6 +603,12 @@ def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0
         except InputError as exc:   # no feasible refit of the same structure: the current model
             rnd["null_refit_error"] = str(exc)
             tab_null = tab_cur
+        tab_null_cur = None
+        try:
+            m0 = null_cur_fit.result() if null_cur_fit is not None else None
+            tab_null_cur = m0 and {"train": residuals(m0, train).table(), "val": residuals(m0, val).table()}
+        except InputError as exc:
+            rnd["null_refit_from_current_error"] = str(exc)
         # the current model is a reference unless it saw the held-out part (the given model, or a
         # locked refit composed with it, which keeps its predictions of the other channels)
         cur = dict.fromkeys(tab_cur) if in_sample else tab_cur
@@ -628,7 +638,7 @@ def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0
             try:
                 m = fit_c.result()
             except InputError as exc:
-                rnd["trials"].append({"kind": c.kind, "axis": c.axis, "params": c.params, "error": str(exc)})
+                rnd["trials"].append({**_trial_of(c), "error": str(exc)})
                 continue
             # a locked refit keeps the current poles and, composed with the current model, its
             # predictions of the channels the effect does not feed: its reference is then the
@@ -644,6 +654,8 @@ def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0
                 rtr, rva = tab_cur["train"], tab_cur["val"]
             if tab_plus is not None and c.kind in ORDER_RIVALS:   # and one more real pole
                 rtr, rva = _better(rtr, tab_plus["train"]), _better(rva, tab_plus["val"])
+            if c.from_current and tab_null_cur:
+                rtr, rva = _better(rtr, tab_null_cur["train"]), _better(rva, tab_null_cur["val"])
             # candidates are ranked against one baseline; a reference only decides the keeping
             # (a play-law Stribeck's gain over the play law alone is no measure against the others)
             rank = max(_gain(tab_cur["train"] if rtr is None else rtr, tt).values())
@@ -651,7 +663,7 @@ def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0
                 try:
                     mr = fit_ref.result()
                 except InputError as exc:   # then it cannot be compared: not kept
-                    rnd["trials"].append({"kind": c.kind, "axis": c.axis, "params": c.params,
+                    rnd["trials"].append({**_trial_of(c),
                                           "error": f"reference refit: {exc}"})
                     continue
                 if kept_base:
@@ -665,7 +677,7 @@ def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0
             ours = [ag.describe_fitted(m, e) for e in m.effects[-(len(diag.steps) + 1):]]
             effect, why = ours[-1], first_implausible(ours)
             trials.append((rank, c, m, rt, rv, keep and not why, kept_base))
-            rnd["trials"].append({"kind": c.kind, "axis": c.axis, "params": c.params, "fitted": effect,
+            rnd["trials"].append({**_trial_of(c), "fitted": effect,
                                   "gain_train": g_train, "gain_val": g_val, "kept": False,
                                   "criterion_met": bool(keep), "implausible": why})
         trials.sort(key=lambda x: -x[0])
@@ -676,7 +688,7 @@ def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0
         _, c, m, rt, rv, _, kept_base = chosen
         in_sample = in_sample and kept_base
         for tr_ in rnd["trials"]:
-            if (tr_.get("kind"), tr_.get("axis"), tr_.get("params")) == (c.kind, c.axis, c.params):
+            if tr_.get("label") == c.label and (tr_.get("axis"), tr_.get("params")) == (c.axis, c.params):
                 tr_["kept"] = True
         effect = ag.describe_fitted(m, m.effects[-1])
         effect.update({k: v for k, v in c.params.items() if k not in effect})
@@ -709,6 +721,12 @@ def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0
                   + data_limits(model.axes, tool_axes, conc, kept, lost, play))
     diag.wall_time_s = time.perf_counter() - t0
     return diag
+
+
+def _trial_of(c):
+    """A trial's record names its candidate: kind, the statistic's label (a kind may have two),
+    axis and parameters."""
+    return {"kind": c.kind, "label": c.label, "axis": c.axis, "params": c.params}
 
 
 def _params_words(params):

@@ -208,10 +208,11 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
     for rnd in diag.rounds:
         rows = []
         for c in rnd["candidates"]:
-            trial = next((t for t in rnd["trials"] if (t["kind"], t.get("axis"), t["params"])
-                          == (c["kind"], c["axis"], c["params"])), {})
+            label = c.get("label", c["kind"])
+            trial = next((t for t in rnd["trials"] if (t.get("label", t["kind"]), t.get("axis"), t["params"])
+                          == (label, c["axis"], c["params"])), {})
             gv = trial.get("gain_val", {})
-            rows.append({"round": rnd["round"], "kind": c["kind"], "axis": c["axis"],
+            rows.append({"round": rnd["round"], "kind": label, "axis": c["axis"],
                          "statistic": c["statistic"], "threshold": c["threshold"],
                          "tried": ("not checked" if c.get("not_checked") else
                                    "yes" if c["detected"] else "no"),
