@@ -604,11 +604,12 @@ def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0
             rnd["null_refit_error"] = str(exc)
             tab_null = tab_cur
         tab_null_cur = None
-        try:
-            m0 = null_cur_fit.result() if null_cur_fit is not None else None
-            tab_null_cur = m0 and {"train": residuals(m0, train).table(), "val": residuals(m0, val).table()}
-        except InputError as exc:
-            rnd["null_refit_from_current_error"] = str(exc)
+        if null_cur_fit is not None:
+            try:
+                m0 = null_cur_fit.result()
+                tab_null_cur = {"train": residuals(m0, train).table(), "val": residuals(m0, val).table()}
+            except InputError as exc:   # then the trials face the other references only
+                rnd["null_refit_from_current_error"] = str(exc)
         # the current model is a reference unless it saw the held-out part (the given model, or a
         # locked refit composed with it, which keeps its predictions of the other channels)
         cur = dict.fromkeys(tab_cur) if in_sample else tab_cur
@@ -654,7 +655,7 @@ def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0
                 rtr, rva = tab_cur["train"], tab_cur["val"]
             if tab_plus is not None and c.kind in ORDER_RIVALS:   # and one more real pole
                 rtr, rva = _better(rtr, tab_plus["train"]), _better(rva, tab_plus["val"])
-            if c.from_current and tab_null_cur:
+            if c.from_current and tab_null_cur is not None:
                 rtr, rva = _better(rtr, tab_null_cur["train"]), _better(rva, tab_null_cur["val"])
             # candidates are ranked against one baseline; a reference only decides the keeping
             # (a play-law Stribeck's gain over the play law alone is no measure against the others)
