@@ -112,6 +112,12 @@ def _residual_figure(step_label, rb, ra):
     return fig, data
 
 
+def _one_legend(ax, ax2):
+    """Both axes' curves of a twin-axis figure in one legend."""
+    ax.legend(*(a + b for a, b in zip(ax.get_legend_handles_labels(), ax2.get_legend_handles_labels())),
+              fontsize=8, loc="best")
+
+
 def _evidence_figure(cand):
     import matplotlib.pyplot as plt
     p = cand.get("plot") or {}
@@ -129,8 +135,7 @@ def _evidence_figure(cand):
         ax2.set_ylabel("coherence [-]")
         ax.set_xlabel("f [Hz]")
         ax.set_ylabel("|H| [s²] (mm per mm/s²)")    # residual (mm) over commanded acceleration
-        ax.legend(*(a + b for a, b in zip(ax.get_legend_handles_labels(), ax2.get_legend_handles_labels())),
-                  fontsize=8, loc="best")       # both axes' curves in one legend
+        _one_legend(ax, ax2)
     elif kind == "periodic_position":
         lam, P, bg = (np.asarray(p[k]) for k in ("wavelength_mm", "power", "background"))
         ax.loglog(lam, P, lw=0.8, label="residual power over position")
@@ -147,8 +152,7 @@ def _evidence_figure(cand):
             ax2.plot(np.asarray(p["shift"]), np.asarray(p["refined_free_run_um"]), "s--", color="tab:orange",
                      label="free-run RMS, refined refits")
             ax2.set_ylabel("free-run RMS [µm] (training)")
-            ax.legend(*(a + b for a, b in zip(ax.get_legend_handles_labels(), ax2.get_legend_handles_labels())),
-                      fontsize=8, loc="best")
+            _one_legend(ax, ax2)
     else:
         plt.close(fig)
         return None, None
