@@ -1,13 +1,17 @@
-"""Model accuracy on every validation trace of the README tables, for a side-by-side comparison
-of two versions of the identification (issue 8: causal models against the earlier Tustin models).
+"""Model accuracy and well-posedness on every validation trace of the README tables, for a
+side-by-side comparison of two versions of the package.
 
 Free-run discrepancy RMS in µm of the predicted tracking error (virtual drive; tool-side error for
-the flexible axis) or position (EMPS) against the measurement, for the pole search, Full LS and
-quasi-static. Run it in each checkout, then compare:
+the flexible axis) or position (EMPS, plant2) against the measurement, for the pole search, Full LS
+and quasi-static. For every pole-search model and trace, the sensitivity of the free run to its
+commands: each command sample moved by +-delta (random sign per sample, delta = 1e-12, 1e-9,
+1e-6 mm), max |change of the predicted position| / delta ("gain"; the target is <= 100, with
+1e-9 mm of slack at the smallest delta). Run this script with each version's Python, then compare:
 
     .venv/bin/python benchmarks/bench_accuracy.py --label new
-    OTHER/.venv/bin/python benchmarks/bench_accuracy.py --label old --out old.json   (other checkout)
-    .venv/bin/python benchmarks/bench_accuracy.py --compare old.json new.json
+    OTHER/.venv/bin/python benchmarks/bench_accuracy.py --label old    (the other version's venv)
+    .venv/bin/python benchmarks/bench_accuracy.py --compare results/bench_accuracy_old.json \
+        results/bench_accuracy_new.json
 
 Writes benchmarks/results/bench_accuracy_<label>.json (single core: BLAS threads pinned to 1).
 """
@@ -18,18 +22,56 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import json  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
 
 from fdid_fmi.identify import (Bounds, identify_full_ls, identify_mimo, identify_quasi_static,  # noqa: E402
                                identify_siso, mimo_structure)
 from fdid_fmi.metrics import rms  # noqa: E402
+from fdid_fmi.model import load_model  # noqa: E402
 from fdid_fmi.simulate import simulate  # noqa: E402
+from fdid_fmi.trace import Channel, Trace  # noqa: E402
 from fdid_fmi.virtual import MachineConfig, presets, simulate_machine  # noqa: E402
 from fdid_fmi.virtual import trajectories as tj  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / "results"
 EMPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "emps"
+TESTS = Path(__file__).resolve().parents[1] / "tests"
+DELTAS_MM = (1e-12, 1e-9, 1e-6)
+GAINS = {}          # "case trace" -> [gain at each delta]
+LINEAR_GAINS = {}   # the same with the friction switched off: the linear part's own gain
+
+
+def perturbed(tr, axes, delta, seed=1):
+    """``tr`` with every command sample of ``axes`` moved by +-delta mm (random sign)."""
+    rng = np.random.default_rng(seed)
+    ch = dict(tr.channels)
+    for a in axes:
+        c = tr.channels[tr.roles[a]["cmd"]]
+        ch[c.name] = Channel(c.name, c.unit, c.data + delta * rng.choice([-1.0, 1.0], c.data.size))
+    return Trace(t=tr.t, channels=ch, roles=tr.roles, source=tr.source, meta=dict(tr.meta),
+                 jitter_tol=tr.jitter_tol)
+
+
+def _gains(model, tr, params=None):
+    base = simulate(model, tr, params=params)
+    gains = []
+    for d in DELTAS_MM:
+        sim = simulate(model, perturbed(tr, model.axes, d), params=params)
+        gains.append(max(float(np.max(np.abs(sim.axes[a]["position"] - base.axes[a]["position"])))
+                         for a in model.axes) / d)
+    return gains
+
+
+def record_gains(key, model, tr):
+    """max |position change| / delta of the free run of ``tr`` for each delta of DELTAS_MM, with
+    the model's friction and without it."""
+    GAINS[key] = _gains(model, tr)
+    fric = {p.axis for p in model.inputs if p.kind == "friction"}
+    LINEAR_GAINS[key] = _gains(model, tr, {f"{a}_friction_on": False for a in fric}) if fric else GAINS[key]
 
 
 def _one(cfg, ax):
@@ -58,6 +100,8 @@ def case_virtual(name, cfg, ax, pole_search):
     models = {"pole search": pole_search(train, ax), "Full LS": identify_full_ls(train, ax),
               "quasi-static": identify_quasi_static(train, [ax])}
     wall = time.perf_counter() - t0
+    for v, tr in vals.items():
+        record_gains(f"{name} {ax} {v}", models["pole search"], tr)
     return {f"{name} {ax} {v}": {k: err_um(m, tr, ax) for k, m in models.items()}
             for v, tr in vals.items()}, wall
 
@@ -79,6 +123,7 @@ def case_flexible():
     for v, tr in vals.items():
         pred = simulate(m, tr).axes["y"]["tool_position"]
         out[f"flexible y tool {v}"] = {"pole search": 1e3 * rms(pred - tr.get("y", "tool"))}
+        record_gains(f"flexible y tool {v}", m, tr)
     return out, wall
 
 
@@ -96,7 +141,23 @@ def case_emps():
     for v, tr in (("train", train), ("pulses before 1st pulse", test)):
         out[f"EMPS position {v}"] = {k: 1e3 * rms(simulate(m, tr).axes["x"]["position"] - tr.act("x"))
                                      for k, m in models.items()}
+        record_gains(f"EMPS position {v}", models["pole search"], tr)
     return out, wall
+
+
+def case_plant2():
+    """plant2's stored default-path models (tests/data) on their scenarios' traces: position."""
+    sys.path.insert(0, str(TESTS))
+    import plant2 as p2
+    out = {}
+    for scen in ("clean_rigid", "delay"):
+        model = load_model(TESTS / "data" / f"plant2_{scen}_default_model.json")
+        train, val, _ = p2.scenario(scen)
+        for tr in train + val:
+            key = f"plant2 {scen} {tr.meta['name']}"
+            out[key] = {"pole search": 1e3 * rms(simulate(model, tr).axes["x"]["position"] - tr.act("x"))}
+            record_gains(key, model, tr)
+    return out, 0.0
 
 
 def run():
@@ -115,7 +176,11 @@ def run():
     rows.update(r)
     r, walls["EMPS"] = case_emps()
     rows.update(r)
-    return {"discrepancy_um": rows, "identification_wall_s": walls}
+    r, _ = case_plant2()
+    rows.update(r)
+    return {"discrepancy_um": rows, "identification_wall_s": walls,
+            "perturbation_gain": {"delta_mm": list(DELTAS_MM), "gain": dict(GAINS),
+                                  "gain_without_friction": dict(LINEAR_GAINS)}}
 
 
 def compare(old_file, new_file):
@@ -128,6 +193,15 @@ def compare(old_file, new_file):
             ratio = f"{v / o:.2f}" if o else "—"
             print(f"| {trace} | {model} | {o:.3f} | {v:.3f} | {ratio} |" if o is not None else
                   f"| {trace} | {model} | — | {v:.3f} | — |")
+    og, ng = (d.get("perturbation_gain", {}).get("gain", {}) for d in (old, new))
+    if ng:
+        print()
+        print("| trace | " + " | ".join(f"gain at {d:g} mm: {old.get('label', 'old')} / {new.get('label', 'new')}"
+                                         for d in DELTAS_MM) + " |")
+        print("|---|" + "---:|" * len(DELTAS_MM))
+        for trace, g in ng.items():
+            o = og.get(trace, [float("nan")] * len(g))
+            print(f"| {trace} | " + " | ".join(f"{a:.3g} / {b:.3g}" for a, b in zip(o, g)) + " |")
 
 
 def main():
@@ -148,6 +222,12 @@ def main():
     for trace, d in res["discrepancy_um"].items():
         print(f"| {trace} | " + " | ".join(f"{d[k]:.3f}" if k in d else "—"
                                          for k in ("pole search", "Full LS", "quasi-static")) + " |")
+    print()
+    print("| trace | " + " | ".join(f"gain at {d:g} mm" for d in DELTAS_MM) + " | without friction |")
+    print("|---|" + "---:|" * (len(DELTAS_MM) + 1))
+    for trace, g in res["perturbation_gain"]["gain"].items():
+        lin = max(res["perturbation_gain"]["gain_without_friction"][trace])
+        print(f"| {trace} | " + " | ".join(f"{x:.3g}" for x in g) + f" | {lin:.3g} |")
     print(f"written {out}")
 
 
