@@ -48,10 +48,11 @@ class FdidSlaveBase(Fmi2Slave):
             setter = lambda x: self._set(role, idx, name, x)  # noqa: E731
         kw = dict(causality=_CAUS[v["causality"]], variability=_VARI[v["variability"]],
                   description=v["description"], getter=getter, setter=setter)
-        if v["type"] == "Boolean":
-            self.register_variable(Boolean(name, **kw), nested=False)
-        else:
-            self.register_variable(Real(name, **kw), nested=False)
+        var = Boolean(name, **kw) if v["type"] == "Boolean" else Real(name, **kw)
+        # the value reference of the layout (fmu/layout.py, from FIRST_VR), as in the C FMU and the
+        # modelDescription.xml; getter and setter are given, so nothing else of register_variable is needed
+        var.value_reference = v["vr"]
+        self.vars[v["vr"]] = var
 
     def _set(self, role, a, name, x):
         x = float(x)

@@ -34,7 +34,7 @@ static void emit(const FdidInstance *B, int status, const char *category, const 
     if (I->logger) I->logger(I->env, (fmi3Status)status, category, message);
 }
 
-static const FdidApi API = {"fmi3", "step mode", "FMUState", 0x46444933u /* "FDI3" */, 0, emit};
+static const FdidApi API = {"fmi3", "step mode", "FMUState", 0x46444933u /* "FDI3" */, 0, 0, emit};
 
 #define CHECK(c, fn, mask)                        \
     FdidInstance *I = (FdidInstance *)(c);        \
@@ -91,6 +91,7 @@ FMI3_Export fmi3Instance fmi3InstantiateCoSimulation(
      * contrast, expects errors to be logged: fmi2Functions.c) */
     tmp.base.log_on[FDID_CAT_ERROR] = tmp.base.log_on[FDID_CAT_FATAL] = loggingOn ? 1 : 0;
     tmp.base.log_on[FDID_CAT_WARNING] = tmp.base.log_on[FDID_CAT_CALLS] = loggingOn ? 1 : 0;
+    tmp.base.log_on[FDID_CAT_NOTE] = loggingOn ? 1 : 0;
     if (!instanceName || !instanceName[0]) {
         fdid_log(&tmp.base, FDID_ERROR, FDID_CAT_ERROR, "fmi3InstantiateCoSimulation: missing instance name");
         return NULL;
