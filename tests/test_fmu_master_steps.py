@@ -194,3 +194,74 @@ def test_value_references_start_at_1_and_dependencies_name_existing_variables(tm
                 n_deps += 1
                 assert mv[int(dep) - 1].get("causality") == "input"
     assert n_deps > 0
+
+
+def _fmi3_slave(fmu, tmp_path, name="i"):
+    from fmpy import extract
+    from fmpy.fmi3 import FMU3Slave
+    md = read_model_description(str(fmu))
+    d = extract(str(fmu), str(tmp_path / name))
+    f = FMU3Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier,
+                  instanceName=name)
+    return f, {v.name: v.valueReference for v in md.modelVariables}
+
+
+def test_fmi3_intermediate_update_feeds_every_sample_of_a_coarse_step(fmus, cmd, tmp_path):
+    """FMI 3.0 has no input derivatives; its counterpart is intermediate update mode
+    (providesIntermediateUpdate): before each internal sample of a step the FMU asks the master
+    for the inputs of that sample. A master that answers with its table steps at 4 samples and
+    gets the per-sample prediction exactly, friction and all; one that sets a parameter there is
+    refused."""
+    m = fmus["model"]
+    ref = simulate(m, {"x": cmd}, Ts=m.Ts).axes["x"]["position"]
+    f, vr = _fmi3_slave(fmus[3], tmp_path)
+    asked = []
+
+    def update(env, t, set_requested, get_allowed, finished, can_return, early, early_time):
+        k = int(round(t / m.Ts))
+        asked.append(k)
+        f.setFloat64([vr["x_x_cmd"]], [cmd[k]])
+
+    f.instantiate(intermediateUpdate=update, requiredIntermediateVariables=[vr["x_x_cmd"]])
+    try:
+        f.enterInitializationMode(startTime=0.0)
+        f.setFloat64([vr["x_x_cmd"]], [cmd[0]])
+        f.exitInitializationMode()
+        got = []
+        for k in range(0, 400, 4):
+            f.setFloat64([vr["x_x_cmd"]], [cmd[k]])
+            f.doStep(k * m.Ts, 4 * m.Ts)
+            got.append(f.getFloat64([vr["x_x"]])[0])
+        assert asked[:6] == [1, 2, 3, 5, 6, 7] and len(asked) == 300
+        assert np.abs(np.array(got) - ref[4:401:4]).max() == 0.0
+        held = run_coarse(fmus[3], m.Ts * np.arange(401), {"x_x_cmd": cmd[:401]}, ["x_x"], {}, 4,
+                          derivatives=False)[1]["x_x"]
+        assert np.abs(held - ref[4:401:4]).max() > 1e-6      # held inputs are not the same run
+    finally:
+        f.freeInstance()
+    g, _ = _fmi3_slave(fmus[3], tmp_path, "g")
+
+    def bad_update(env, t, *rest):
+        try:
+            g.setFloat64([vr["x_friction_level"]], [0.5])
+        except FMICallException:          # refused: the doStep that called back fails with it
+            pass
+
+    msgs = []
+    g.instantiate(loggingOn=True, intermediateUpdate=bad_update, requiredIntermediateVariables=[vr["x_x_cmd"]],
+                  logMessage=lambda env, status, cat, msg: msgs.append(msg.decode()))
+    try:
+        g.enterInitializationMode(startTime=0.0)
+        g.exitInitializationMode()
+        with pytest.raises(FMICallException):
+            g.doStep(0.0, 4 * m.Ts)
+        assert any("cannot be set in intermediate update mode (inputs only)" in s for s in msgs), msgs
+    finally:
+        g.freeInstance()
+    # an output asked for as an intermediate variable: refused at instantiation, with a message
+    h, _ = _fmi3_slave(fmus[3], tmp_path, "h")
+    msgs.clear()
+    with pytest.raises(Exception):
+        h.instantiate(loggingOn=True, intermediateUpdate=update, requiredIntermediateVariables=[vr["x_x"]],
+                      logMessage=lambda env, status, cat, msg: msgs.append(msg.decode()))
+    assert any("is not an input" in s for s in msgs), msgs

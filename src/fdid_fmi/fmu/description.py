@@ -169,7 +169,7 @@ def model_description_fmi3(layout, guid, model_identifier, description=None):
         "modelIdentifier": model_identifier, "canHandleVariableCommunicationStepSize": "false",
         "canGetAndSetFMUState": "true", "canSerializeFMUState": "true",
         "providesDirectionalDerivatives": "false", "providesAdjointDerivatives": "false",
-        "providesIntermediateUpdate": "false", "canReturnEarlyAfterIntermediateUpdate": "false",
+        "providesIntermediateUpdate": "true", "canReturnEarlyAfterIntermediateUpdate": "false",
         "fixedInternalStepSize": repr(float(m.Ts)), "hasEventMode": "false"})
     _unit_definitions(root, layout)
     _log_categories_and_experiment(root, m.Ts)
@@ -182,6 +182,9 @@ def model_description_fmi3(layout, guid, model_identifier, description=None):
             attrs["min"] = "0.0"
         if v.start is not None:
             attrs["start"] = _fmt(v.start)
+        if v.causality == "input":
+            # settable in intermediate update mode: the inputs of each sample of a coarse step
+            attrs["intermediateUpdate"] = "true"
         _el(mv, "Float64" if v.type == "Real" else "Boolean", attrs, what=f"variable {v.name!r}")
     # the independent variable last: the variable with value reference k (from FIRST_VR = 1) is
     # then also the k-th in the list, so a master that reads dependencies as 1-based indices

@@ -76,6 +76,7 @@ static const char *state_name(const FdidInstance *I) {
     case FDID_ST_STEP: return I->api->step_mode_name;
     case FDID_ST_TERMINATED: return "terminated";
     case FDID_ST_ERROR: return "error";
+    case FDID_ST_UPDATE: return "intermediate update mode";
     default: return "fatal";
     }
 }
@@ -381,10 +382,22 @@ static double *slope_of(FdidInstance *I, const FdidVar *v) {
     return NULL;
 }
 
+int fdid_is_input(unsigned vr) {
+    const FdidVar *v;
+    if (vr < FDID_FIRST_VR || vr - FDID_FIRST_VR >= (unsigned)fdid_model.n_vars) return 0;
+    v = &fdid_model.vars[vr - FDID_FIRST_VR];
+    return v->role == FDID_V_CMD || v->role == FDID_V_EXT;
+}
+
 int fdid_set_real(FdidInstance *I, const char *fn, unsigned vr, double value) {
     const FdidVar *v = lookup(I, fn, vr, FDID_T_REAL);
     double *slope;
-    if (!v || !set_value(I, fn, v, value)) return 0;
+    if (!v) return 0;
+    if (I->mode == FDID_ST_UPDATE && v->role != FDID_V_CMD && v->role != FDID_V_EXT) {
+        fdid_fail(I, "%s: %s cannot be set in intermediate update mode (inputs only)", fn, v->name);
+        return 0;
+    }
+    if (!set_value(I, fn, v, value)) return 0;
     /* a derivative belongs to the value it was set with, at the start of a communication step
      * (FMI 2.0.4 section 4.2.1): a new value without one is held */
     if ((slope = slope_of(I, v)) != NULL) *slope = 0.0;
@@ -609,13 +622,13 @@ static double grid_tolerance(double t) {
 /* the internal steps of one doStep: inputs held, or moved along the derivatives set for this
  * step (sample j of the step gets u + j Ts du/dt); the values set stay what the FMU holds
  * afterwards, and the derivatives are used up */
-static void advance_inputs(FdidInstance *I, const char *fn, double h, long long nsteps) {
+static int advance_inputs(FdidInstance *I, const char *fn, double h, long long nsteps) {
     FdidState *S = &I->s;
     int na = fdid_model.n_axes, m = fdid_model.m, a, i, sloped = 0;
     double *held;
     long long k;
     for (i = 0; i < na + m; i++) sloped |= I->slope[i] != 0.0;
-    if (nsteps > 1 && !I->coarse_noted) {
+    if (nsteps > 1 && !I->coarse_noted && !I->between_samples) {
         I->coarse_noted = 1;
         fdid_log(I, FDID_WARNING, FDID_CAT_NOTE,
                  "%s: communication step %.6g s = %lld samples of Ts = %.6g s: each input is held for %lld "
@@ -625,9 +638,31 @@ static void advance_inputs(FdidInstance *I, const char *fn, double h, long long 
                                              "then it follows that slope within the step)" : "",
                  fdid_model.Ts);
     }
+    if (I->between_samples && nsteps > 1) {
+        /* the master sets the inputs of each sample of the step (FMI 3 intermediate update) */
+        held = I->slope + na + m;
+        for (a = 0; a < na; a++) held[a] = S->cmd[a];
+        for (i = 0; i < m; i++) held[na + i] = S->ext[i];
+        for (k = 0; k < nsteps; k++) {
+            if (k > 0) {
+                double t = I->start_time + (double)S->f.steps * fdid_model.Ts;
+                S->f.started = 1;       /* inputs set now belong to this sample, not to the start */
+                I->mode = FDID_ST_UPDATE;
+                I->between_samples(I, t);
+                if (I->mode != FDID_ST_UPDATE) return FDID_ERROR;   /* a refused set: logged there */
+                I->mode = FDID_ST_STEP;
+                S->f.out_dirty = 1;
+            }
+            fdid_advance(S);
+        }
+        for (a = 0; a < na; a++) S->cmd[a] = held[a];
+        for (i = 0; i < m; i++) S->ext[i] = held[na + i];
+        S->f.out_dirty = 1;
+        return FDID_OK;
+    }
     if (!sloped) {
         for (k = 0; k < nsteps; k++) fdid_advance(S);
-        return;
+        return FDID_OK;
     }
     held = I->slope + na + m;
     for (a = 0; a < na; a++) held[a] = S->cmd[a];
@@ -646,6 +681,7 @@ static void advance_inputs(FdidInstance *I, const char *fn, double h, long long 
     for (i = 0; i < m; i++) S->ext[i] = held[na + i];
     for (i = 0; i < na + m; i++) I->slope[i] = 0.0;
     S->f.out_dirty = 1;
+    return FDID_OK;
 }
 
 int fdid_do_step(FdidInstance *I, const char *fn, double t_comm, double h) {
@@ -692,7 +728,7 @@ int fdid_do_step(FdidInstance *I, const char *fn, double t_comm, double h) {
         return fdid_fail(I, "%s: the step would end at %.17g s, past the stop time %.17g s", fn, t_end,
                          I->stop_time);
     if (!friction_resolved(I, fn)) return FDID_ERROR;     /* logged there */
-    advance_inputs(I, fn, h, nsteps);
+    if (advance_inputs(I, fn, h, nsteps) != FDID_OK) return FDID_ERROR;
     I->s.f.started = 1;
     /* a step that leaves the model's state non-finite failed: report it here, not first at a
      * later fmi*Get (a master that reads other outputs, or none, would go on with OK), and never

@@ -27,7 +27,8 @@ enum { FDID_OK = 0, FDID_WARNING = 1, FDID_DISCARD = 2, FDID_ERROR = 3, FDID_FAT
 /* instance states (bit masks, FMI 2.0.4 section 4.2.4 / FMI 3.0 section 4.2.1) */
 enum {
     FDID_ST_INSTANTIATED = 1, FDID_ST_INIT = 2, FDID_ST_STEP = 4, FDID_ST_TERMINATED = 8,
-    FDID_ST_ERROR = 16, FDID_ST_FATAL = 32
+    FDID_ST_ERROR = 16, FDID_ST_FATAL = 32,
+    FDID_ST_UPDATE = 64   /* FMI 3 intermediate update mode, inside doStep: only inputs may be set */
 };
 #define FDID_ANY_STATE (FDID_ST_INSTANTIATED | FDID_ST_INIT | FDID_ST_STEP | FDID_ST_TERMINATED | FDID_ST_ERROR)
 #define FDID_GET_STATES (FDID_ST_INIT | FDID_ST_STEP | FDID_ST_TERMINATED | FDID_ST_ERROR)
@@ -69,6 +70,10 @@ struct FdidInstance {
                              time: n_axes commands then m model inputs (external ones used);
                              used by the next doStep only */
     int coarse_noted;     /* the note on coarse steps was logged (once per instance) */
+    /* FMI 3 intermediate update: when set, called (in FDID_ST_UPDATE) before each internal
+     * sample of a doStep after its first, with that sample's time, so that the master can set
+     * the inputs of that sample */
+    void (*between_samples)(FdidInstance *I, double t);
     FdidState s;
 };
 
@@ -114,6 +119,9 @@ int fdid_free_state(FdidInstance *I, const char *fn, void **state);
 int fdid_serialized_size(FdidInstance *I, const char *fn, const void *state, size_t *size);
 int fdid_serialize(FdidInstance *I, const char *fn, const void *state, void *bytes, size_t size);
 int fdid_deserialize(FdidInstance *I, const char *fn, const void *bytes, size_t size, void **state);
+
+/* 1 when vr names an input variable (commanded position or external input) */
+int fdid_is_input(unsigned vr);
 
 /* first derivative (order 1) of an input for the next doStep; 1 on success, 0 after logging */
 int fdid_set_input_derivative(FdidInstance *I, const char *fn, unsigned vr, int order, double value);
