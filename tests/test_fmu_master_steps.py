@@ -265,3 +265,23 @@ def test_fmi3_intermediate_update_feeds_every_sample_of_a_coarse_step(fmus, cmd,
         h.instantiate(loggingOn=True, intermediateUpdate=update, requiredIntermediateVariables=[vr["x_x"]],
                       logMessage=lambda env, status, cat, msg: msgs.append(msg.decode()))
     assert any("is not an input" in s for s in msgs), msgs
+
+
+def test_validate_reports_fed_every_sample_and_the_masters_coarse_step(fmus, cmd):
+    """fdid validate gives both figures, in its text and its JSON: fed every sample, and at the
+    step fmpy picks by itself with the inputs held and with the inputs passed within the step."""
+    from fdid_fmi.fmu import validate_fmu
+    from fdid_fmi.trace import Trace
+    out = {}
+    for key, m in (("linear2", fmus["linear"]), (3, fmus["model"])):
+        x = simulate(m, {"x": cmd}, Ts=m.Ts).axes["x"]["position"]
+        tr = Trace.from_arrays(m.Ts * np.arange(N), {"x": {"cmd": cmd, "act": x}}, source="synthetic")
+        res = validate_fmu(fmus[key], tr)
+        d, text = res.to_dict(), res.table()
+        assert res.ok and d["coarse_step_s"] == pytest.approx(0.004) and d["coarse_samples"] == 4
+        assert "fed every sample" in text and "held inputs at a master's step of 0.004 s (4 samples)" in text
+        out[key] = d
+    lin = out["linear2"]
+    assert lin["max_abs_diff_reference_mm"] <= 1e-9 < lin["max_abs_diff_held_mm"]
+    assert lin["max_abs_diff_interpolated_mm"] * 10 <= lin["max_abs_diff_held_mm"]
+    assert out[3]["max_abs_diff_interpolated_mm"] == 0.0 < out[3]["max_abs_diff_held_mm"]

@@ -15,9 +15,10 @@
    axes the contour-error discrepancy of the first two axes;
 4. the FMU run at a master's coarser communication step (:func:`coarse_step`: the output
    interval ``fmpy.simulate_fmu`` picks when given ``step_size`` alone), against the reference at
-   the same time stamps: with the inputs held over each step (``fmpy.simulate_fmu``), and for
-   FMI 2 with the input derivatives a master passes (``fmi2SetRealInputDerivatives``, slopes of
-   the input table as fmpy computes them; :func:`run_coarse`). So a user sees both figures: "fed
+   the same time stamps: with the inputs held over each step (``fmpy.simulate_fmu``), and with
+   what a master can pass within a step (:func:`run_coarse`): FMI 2 input derivatives
+   (``fmi2SetRealInputDerivatives``, slopes of the input table as fmpy computes them), FMI 3
+   the inputs of every sample in intermediate update mode. So a user sees both figures: "fed
    every sample" (2.) and "held (or interpolated) inputs at the master's step".
 
 Timing. The models are causal: an output read after ``doStep(t_k, Ts)`` is the prediction for
@@ -69,8 +70,8 @@ class ValidationResult:
     coarse_samples : int            that step in samples
     max_abs_diff_held_mm : float    max |FMU - reference| of the positions at that step, inputs held
     max_abs_diff_interpolated_mm : float or None
-        the same with input derivatives set (FMI 2 canInterpolateInputs; None for FMI 3, whose
-        co-simulation interface has no input derivatives)
+        the same with the inputs the master can pass within a step: FMI 2 input derivatives
+        (canInterpolateInputs), FMI 3 the inputs of each sample in intermediate update mode
     """
 
     fmu: str
@@ -108,8 +109,10 @@ class ValidationResult:
                  f"held inputs at a master's step of {self.coarse_step_s:g} s ({n} samples): max |FMU - reference| "
                  f"= {self.max_abs_diff_held_mm:.3g} mm"]
         if self.max_abs_diff_interpolated_mm is not None:
-            lines.append(f"interpolated inputs (input derivatives) at {self.coarse_step_s:g} s: max |FMU - "
-                         f"reference| = {self.max_abs_diff_interpolated_mm:.3g} mm")
+            how = ("inputs of every sample given in intermediate update mode" if self.fmi_version.startswith("3")
+                   else "interpolated inputs (input derivatives)")
+            lines.append(f"{how} at {self.coarse_step_s:g} s: max |FMU - reference| = "
+                         f"{self.max_abs_diff_interpolated_mm:.3g} mm")
         return lines
 
     def table(self):
@@ -173,11 +176,17 @@ class FmuRunner:
             pass
         shutil.rmtree(self._dir, ignore_errors=True)
 
-    def start(self, start_time=0.0, stop_time=None):
-        """Instantiate and enter initialization mode (FMI 2: through fmi2SetupExperiment)."""
+    def start(self, start_time=0.0, stop_time=None, intermediate=None):
+        """Instantiate and enter initialization mode (FMI 2: through fmi2SetupExperiment).
+
+        ``intermediate`` (FMI 3): ``(callback, input value references)`` for intermediate update."""
         f = self.fmu
         if self.version.startswith("3"):
-            f.instantiate(loggingOn=False)
+            if intermediate:
+                f.instantiate(loggingOn=False, intermediateUpdate=intermediate[0],
+                              requiredIntermediateVariables=list(intermediate[1]))
+            else:
+                f.instantiate(loggingOn=False)
             f.enterInitializationMode(startTime=start_time, stopTime=stop_time)
         else:
             f.instantiate(loggingOn=False, callbacks=self._logger)
@@ -353,10 +362,12 @@ def run_coarse(fmu_path, t, inputs, outputs, start_values, n, derivatives):
     """Run an FMU at a communication step of ``n`` samples of the input table ``(t, inputs)``
     (outputs read after each ``doStep``, as masters record them).
 
-    With ``derivatives`` (FMI 2 only) the master passes, after setting each input, its slope at
-    the communication point as ``fmpy.simulate_fmu(..., set_input_derivatives=True)`` computes it
-    from the table (fmpy 0.3's own loop fails with other than nine inputs, so this loop does it);
-    otherwise the inputs are held over each step.
+    With ``derivatives`` the master passes what the FMI version lets it pass within a step: in
+    FMI 2, after setting each input, its slope at the communication point as
+    ``fmpy.simulate_fmu(..., set_input_derivatives=True)`` computes it from the table (fmpy 0.3's
+    own loop fails with other than nine inputs, so this loop does it); in FMI 3, the table's
+    inputs of each internal sample, set in intermediate update mode. Otherwise the inputs are
+    held over each step.
 
     Returns
     -------
@@ -367,8 +378,6 @@ def run_coarse(fmu_path, t, inputs, outputs, start_values, n, derivatives):
     try:
         f = r.fmu
         three = r.version.startswith("3")
-        if derivatives and three:
-            raise InputError("FMI 3.0 co-simulation has no input derivatives", source=str(fmu_path))
         setr = f.setFloat64 if three else f.setReal
         getr = f.getFloat64 if three else f.getReal
         names = list(inputs)
@@ -376,7 +385,12 @@ def run_coarse(fmu_path, t, inputs, outputs, start_values, n, derivatives):
         table = np.vstack([np.asarray(inputs[k], float) for k in names])
         out_vr = [r.vr(k) for k in outputs]
         Ts = float(t[1] - t[0]) if len(t) > 1 else 1.0
-        r.start(float(t[0]))
+        t0 = float(t[0])
+
+        def intermediate(env, time_, *rest):      # FMI 3: the inputs of the sample at time_
+            setr(in_vr, list(table[:, int(round((time_ - t0) / Ts))]))
+
+        r.start(t0, intermediate=(intermediate, in_vr) if derivatives and three else None)
         for k, v in (start_values or {}).items():
             setr([r.vr(k)], [float(v)])
         setr(in_vr, list(table[:, 0]))
@@ -388,7 +402,7 @@ def run_coarse(fmu_path, t, inputs, outputs, start_values, n, derivatives):
             k0 = k - n
             tk = float(t[0]) + k0 * Ts
             setr(in_vr, list(table[:, k0]))
-            if derivatives:
+            if derivatives and not three:
                 _, d = Input.interpolate(time=tk, t=np.asarray(t, float), table=table)
                 f.setRealInputDerivatives(in_vr, [1] * len(in_vr), [float(x) for x in d])
             f.doStep(currentCommunicationPoint=tk, communicationStepSize=h)
@@ -550,8 +564,8 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
 
 def _coarse_figures(res, fmu_path, t, table, pos_names, start_values, R, ref, Ts):
     """Check 4 of :func:`validate_fmu`: the positions at a master's coarse step, inputs held
-    (``fmpy.simulate_fmu`` as a user first calls it) and, for FMI 2, interpolated along the input
-    derivatives (:func:`run_coarse`), against the reference at the same time stamps."""
+    (``fmpy.simulate_fmu`` as a user first calls it) and with the inputs passed within the step
+    (:func:`run_coarse`), against the reference at the same time stamps."""
     from fmpy import simulate_fmu
     h, n = coarse_step(t[-1] - t[0], Ts)
     res.coarse_step_s, res.coarse_samples = h, n
@@ -577,9 +591,8 @@ def _coarse_figures(res, fmu_path, t, table, pos_names, start_values, R, ref, Ts
                             logger=lambda *a: None)
         rows = np.rint((np.asarray(held["time"]) - t[0]) / Ts).astype(int)
         res.max_abs_diff_held_mm = worst(rows, held)
-        if res.fmi_version.startswith("2"):
-            rows, got = run_coarse(fmu_path, t, table, outs, start_values, n, derivatives=True)
-            res.max_abs_diff_interpolated_mm = worst(rows, got)
+        rows, got = run_coarse(fmu_path, t, table, outs, start_values, n, derivatives=True)
+        res.max_abs_diff_interpolated_mm = worst(rows, got)
     except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions
         res.problems.append(f"the FMU could not be run at a communication step of {h:g} s ({n} samples): {exc}")
 
