@@ -619,9 +619,10 @@ static double grid_tolerance(double t) {
     return 1e-6 * fdid_model.Ts + (rounding < cap ? rounding : cap);
 }
 
-/* the internal steps of one doStep: inputs held, or moved along the derivatives set for this
- * step (sample j of the step gets u + j Ts du/dt); the values set stay what the FMU holds
- * afterwards, and the derivatives are used up */
+/* the internal steps of one doStep: inputs held, or set by the master before each sample after
+ * the first (FMI 3 intermediate update, I->between_samples), or moved along the derivatives set
+ * for this step (FMI 2: sample j of the step gets u + j Ts du/dt). The values set at the start
+ * of the step are what the FMU holds afterwards, and the derivatives are used up. */
 static int advance_inputs(FdidInstance *I, const char *fn, double h, long long nsteps) {
     FdidState *S = &I->s;
     int na = fdid_model.n_axes, m = fdid_model.m, a, i, sloped = 0;
