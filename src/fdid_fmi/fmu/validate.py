@@ -29,6 +29,8 @@ before stepping gets the tracking error of t_k+1 itself.
 """
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import shutil
 import tempfile
@@ -586,9 +588,13 @@ def _coarse_figures(res, fmu_path, t, table, pos_names, start_values, R, ref, Ts
         return d
 
     try:
-        held = simulate_fmu(str(fmu_path), start_time=float(t[0]), stop_time=float(t[-1]), output_interval=h,
-                            input=sig, output=outs, start_values=dict(start_values), validate=False,
-                            logger=lambda *a: None)
+        # the FMU's note on held inputs goes to fmpy's default logger, which prints it: kept out of
+        # this report. (No logger= here: fmpy keeps one native pointer to the last logger passed to
+        # simulate_fmu and calls it, freed, for every later FMU that logs through its defaults.)
+        with contextlib.redirect_stdout(io.StringIO()):
+            held = simulate_fmu(str(fmu_path), start_time=float(t[0]), stop_time=float(t[-1]),
+                                output_interval=h, input=sig, output=outs, start_values=dict(start_values),
+                                validate=False)
         rows = np.rint((np.asarray(held["time"]) - t[0]) / Ts).astype(int)
         res.max_abs_diff_held_mm = worst(rows, held)
         rows, got = run_coarse(fmu_path, t, table, outs, start_values, n, derivatives=True)
