@@ -15,7 +15,7 @@ import re
 import numpy as np
 
 from ..errors import InputError
-from .layout import FEATURES, KINDS, ROLES, step_rows
+from .layout import FEATURES, FIRST_VR, KINDS, ROLES, step_rows
 
 IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 GUID = re.compile(r"\{[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}\}")
@@ -85,6 +85,8 @@ def model_data_h(layout, guid, model_identifier):
         "#ifndef FDID_MODEL_DATA_H\n#define FDID_MODEL_DATA_H\n\n"
         f"#define FDID_MODEL_IDENTIFIER {_cstr(model_identifier)}\n"
         f"#define FDID_GUID {_cstr(guid)}\n"
+        "/* value reference of the first variable of fdid_model.vars; the others follow in order */\n"
+        f"#define FDID_FIRST_VR {int(FIRST_VR)}u\n"
         "/* 1 when a feature input needs sin/cos/exp: link with -lm (declared in the build description) */\n"
         f"#define FDID_USE_LIBM {1 if layout.uses_libm else 0}\n\n"
         "#include \"fdid_model.h\"\n"

@@ -121,7 +121,7 @@ def model_description_fmi2(layout, guid, model_identifier, description=None, sou
         "variableNamingConvention": "flat", "numberOfEventIndicators": "0"}, what="description")
     cs = _el(root, "CoSimulation", {
         "modelIdentifier": model_identifier, "canHandleVariableCommunicationStepSize": "false",
-        "canInterpolateInputs": "false", "maxOutputDerivativeOrder": "0",
+        "canInterpolateInputs": "true", "maxOutputDerivativeOrder": "0",
         "canRunAsynchronuously": "false", "canBeInstantiatedOnlyOncePerProcess": "false",
         "canNotUseMemoryManagementFunctions": "false", "canGetAndSetFMUstate": "true",
         "canSerializeFMUstate": "true", "providesDirectionalDerivative": "false"})
@@ -169,13 +169,11 @@ def model_description_fmi3(layout, guid, model_identifier, description=None):
         "modelIdentifier": model_identifier, "canHandleVariableCommunicationStepSize": "false",
         "canGetAndSetFMUState": "true", "canSerializeFMUState": "true",
         "providesDirectionalDerivatives": "false", "providesAdjointDerivatives": "false",
-        "providesIntermediateUpdate": "false", "canReturnEarlyAfterIntermediateUpdate": "false",
+        "providesIntermediateUpdate": "true", "canReturnEarlyAfterIntermediateUpdate": "false",
         "fixedInternalStepSize": repr(float(m.Ts)), "hasEventMode": "false"})
     _unit_definitions(root, layout)
     _log_categories_and_experiment(root, m.Ts)
     mv = _el(root, "ModelVariables")
-    _el(mv, "Float64", {"name": "time", "valueReference": "999999", "causality": "independent",
-                        "variability": "continuous", "description": "simulation time", "unit": "s"})
     for v in layout.variables:
         attrs = _variable_attrs(v)
         if v.type == "Real" and v.unit:
@@ -184,7 +182,15 @@ def model_description_fmi3(layout, guid, model_identifier, description=None):
             attrs["min"] = "0.0"
         if v.start is not None:
             attrs["start"] = _fmt(v.start)
+        if v.causality == "input":
+            # settable in intermediate update mode: the inputs of each sample of a coarse step
+            attrs["intermediateUpdate"] = "true"
         _el(mv, "Float64" if v.type == "Real" else "Boolean", attrs, what=f"variable {v.name!r}")
+    # the independent variable last: the variable with value reference k (from FIRST_VR = 1) is
+    # then also the k-th in the list, so a master that reads dependencies as 1-based indices
+    # names the same variable as the standard's reading (value references)
+    _el(mv, "Float64", {"name": "time", "valueReference": "999999", "causality": "independent",
+                        "variability": "continuous", "description": "simulation time", "unit": "s"})
     ms = _el(root, "ModelStructure")
     for v in layout.outputs:
         _el(ms, "Output", {"valueReference": str(v.vr),

@@ -4,7 +4,7 @@ Computed once per model and shared by the C code generator, the modelDescription
 the pythonfmu backend and the validation driver, so that all of them agree on names and
 value references.
 
-Variables (value reference = position in :attr:`FmuLayout.variables`):
+Variables (value reference = FIRST_VR + position in :attr:`FmuLayout.variables`):
 
 ===========================  ==========  =========  ==========================================
 name                         causality   unit       meaning
@@ -54,6 +54,10 @@ VELOCITY_UNIT = {"mm": "mm_s", "deg": "deg_s"}
 ROLES = ("cmd", "ext", "pos", "err", "vel", "tool", "y", "u", "level", "v_tilde", "on", "v0")
 FEATURES = FEATURE_FUNCTIONS      # the enum FDID_F_* in fmu_templates/fdid_model.h, in this order
 KINDS = ("command", "external", "friction", "feature")
+# value reference of the first variable; the others follow in the order of FmuLayout.variables
+# (the C lookup, fdid_instance.c, reads it from model_data.h). Not 0: some masters read FMI 3
+# dependencies (value references) as 1-based variable indices.
+FIRST_VR = 1
 
 
 @dataclass
@@ -248,7 +252,7 @@ def build_layout(model):
                              initial="exact",
                              description=f"start velocity of axis {a}: the model starts in the steady "
                                          f"state of a ramp at this velocity (0 = at rest)"))
-    for vr, v in enumerate(V):
+    for vr, v in enumerate(V, start=FIRST_VR):
         v.vr = vr
         v.depends = [in_name[d] for d in v.depends]
     return FmuLayout(model=m, axes=axes, variables=V, fric_inputs=fric, fric_vel_output=fvo,

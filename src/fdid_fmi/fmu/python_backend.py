@@ -24,7 +24,7 @@ from .layout import build_layout
 def layout_json(layout, guid, ident, description=None):
     """The data the Python slave needs, as a JSON-able dict: the model and the variable table."""
     return {"model": layout.model.to_dict(),
-            "variables": [{"name": v.name, "role": v.role, "index": v.index, "type": v.type,
+            "variables": [{"name": v.name, "role": v.role, "index": v.index, "type": v.type, "vr": v.vr,
                            "causality": v.causality, "variability": v.variability,
                            "description": v.description} for v in layout.variables],
             "model_description": model_description_fmi2(layout, guid, ident, description)}

@@ -48,10 +48,11 @@ class FdidSlaveBase(Fmi2Slave):
             setter = lambda x: self._set(role, idx, name, x)  # noqa: E731
         kw = dict(causality=_CAUS[v["causality"]], variability=_VARI[v["variability"]],
                   description=v["description"], getter=getter, setter=setter)
-        if v["type"] == "Boolean":
-            self.register_variable(Boolean(name, **kw), nested=False)
-        else:
-            self.register_variable(Real(name, **kw), nested=False)
+        var = Boolean(name, **kw) if v["type"] == "Boolean" else Real(name, **kw)
+        # the value reference of the layout (fmu/layout.py, from FIRST_VR), as in the C FMU and the
+        # modelDescription.xml; getter and setter are given, so nothing else of register_variable is needed
+        var.value_reference = v["vr"]
+        self.vars[v["vr"]] = var
 
     def _set(self, role, a, name, x):
         x = float(x)
@@ -118,6 +119,8 @@ class FdidSlaveBase(Fmi2Slave):
         end = current_time + step_size
         k = math.floor((end - self._start_time) / self.Ts + 0.5)
         n = k - self._steps
+        if n == 0 and step_size > 0 and abs(end - (self._start_time + k * self.Ts)) <= self._tolerance(end):
+            return True     # ends on the current sample: the last sliver of a master that adds up its steps
         if n < 1 or abs(end - (self._start_time + k * self.Ts)) > self._tolerance(end):
             raise ValueError(f"communication step size {step_size!r} s is not an integer multiple of "
                              f"the model sample time Ts = {self.Ts!r} s")

@@ -12,7 +12,14 @@
    error output against its definition (below). A non-finite output anywhere is a problem;
 3. the FMU's prediction against the measurement: RMS and maximum of the tracking-error
    discrepancy (x_cmd(t_k) - x_FMU(t_k) - measured e(t_k)) per axis in µm, and for two or more
-   axes the contour-error discrepancy of the first two axes.
+   axes the contour-error discrepancy of the first two axes;
+4. the FMU run at a master's coarser communication step (:func:`coarse_step`: the output
+   interval ``fmpy.simulate_fmu`` picks when given ``step_size`` alone), against the reference at
+   the same time stamps: with the inputs held over each step (``fmpy.simulate_fmu``), and with
+   what a master can pass within a step (:func:`run_coarse`): FMI 2 input derivatives
+   (``fmi2SetRealInputDerivatives``, slopes of the input table as fmpy computes them), FMI 3
+   the inputs of every sample in intermediate update mode. So a user sees both figures: "fed
+   every sample" (2.) and "held (or interpolated) inputs at the master's step".
 
 Timing. The models are causal: an output read after ``doStep(t_k, Ts)`` is the prediction for
 t_k+1, so row k of the master's table is the model at t_k. The error output ``<axis>_e`` is
@@ -22,6 +29,8 @@ before stepping gets the tracking error of t_k+1 itself.
 """
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import shutil
 import tempfile
@@ -59,6 +68,12 @@ class ValidationResult:
         commands are perturbed by 1e-12 mm (a measure of the trace's chaotic sensitivity)
     unmeasured : list[str]          axes whose measured position the trace lacks: no
                                     discrepancy to the measurement was computed for them
+    coarse_step_s : float           the master's coarse communication step of check 4, s
+    coarse_samples : int            that step in samples
+    max_abs_diff_held_mm : float    max |FMU - reference| of the positions at that step, inputs held
+    max_abs_diff_interpolated_mm : float or None
+        the same with the inputs the master can pass within a step: FMI 2 input derivatives
+        (canInterpolateInputs), FMI 3 the inputs of each sample in intermediate update mode
     """
 
     fmu: str
@@ -74,6 +89,10 @@ class ValidationResult:
     start: str = ""
     reference_sensitivity_mm: float | None = None
     unmeasured: list = field(default_factory=list)
+    coarse_step_s: float = float("nan")
+    coarse_samples: int = 0
+    max_abs_diff_held_mm: float = float("nan")
+    max_abs_diff_interpolated_mm: float | None = None
 
     @property
     def ok(self):
@@ -84,6 +103,20 @@ class ValidationResult:
         d["ok"] = self.ok
         return jsonable(d)
 
+    def _coarse_lines(self):
+        if not np.isfinite(self.coarse_step_s):
+            return []
+        n = self.coarse_samples
+        lines = [f"fed every sample (step = Ts): max |FMU - reference| = {self.max_abs_diff_reference_mm:.3g} mm",
+                 f"held inputs at a master's step of {self.coarse_step_s:g} s ({n} samples): max |FMU - reference| "
+                 f"= {self.max_abs_diff_held_mm:.3g} mm"]
+        if self.max_abs_diff_interpolated_mm is not None:
+            how = ("inputs of every sample given in intermediate update mode" if self.fmi_version.startswith("3")
+                   else "interpolated inputs (input derivatives)")
+            lines.append(f"{how} at {self.coarse_step_s:g} s: max |FMU - reference| = "
+                         f"{self.max_abs_diff_interpolated_mm:.3g} mm")
+        return lines
+
     def table(self):
         """Markdown table of the comparison."""
         n_fmpy = sum(p.startswith("fmpy:") for p in self.problems)
@@ -93,6 +126,7 @@ class ValidationResult:
                  f"(velocity {self.max_abs_diff_reference_velocity_mm_s:.3g} mm/s; "
                  f"target <= {self.tolerance_mm:g} mm)",
                  f"start: {self.start}",
+                 *self._coarse_lines(),
                  "",
                  "| axis | e RMS discrepancy [µm] | e MAX discrepancy [µm] |",
                  "|---|---:|---:|"]
@@ -144,11 +178,17 @@ class FmuRunner:
             pass
         shutil.rmtree(self._dir, ignore_errors=True)
 
-    def start(self, start_time=0.0, stop_time=None):
-        """Instantiate and enter initialization mode (FMI 2: through fmi2SetupExperiment)."""
+    def start(self, start_time=0.0, stop_time=None, intermediate=None):
+        """Instantiate and enter initialization mode (FMI 2: through fmi2SetupExperiment).
+
+        ``intermediate`` (FMI 3): ``(callback, input value references)`` for intermediate update."""
         f = self.fmu
         if self.version.startswith("3"):
-            f.instantiate(loggingOn=False)
+            if intermediate:
+                f.instantiate(loggingOn=False, intermediateUpdate=intermediate[0],
+                              requiredIntermediateVariables=list(intermediate[1]))
+            else:
+                f.instantiate(loggingOn=False)
             f.enterInitializationMode(startTime=start_time, stopTime=stop_time)
         else:
             f.instantiate(loggingOn=False, callbacks=self._logger)
@@ -302,6 +342,93 @@ def run_master(fmu_path, t, inputs, outputs, start_values=None, step_size=None):
     return {k: np.asarray(res[k], float) for k in outputs}
 
 
+def coarse_step(duration, Ts):
+    """The communication step of a master that is not told to feed every sample: the output
+    interval ``fmpy.simulate_fmu`` picks for a co-simulation FMU when given no
+    ``output_interval`` (it ignores ``step_size`` then): the FMU's default experiment step (Ts)
+    doubled until the run of ``duration`` s has at most 1000 steps; at least 2 samples (for a
+    short record fmpy feeds every sample, and there is no coarse step to measure otherwise).
+
+    Returns
+    -------
+    (h, n) : step in s, and in samples (h = n Ts)
+    """
+    n = 1
+    while float(duration) / (n * Ts) > 1000:
+        n *= 2
+    n = max(n, 2)
+    return n * Ts, n
+
+
+def run_coarse(fmu_path, t, inputs, outputs, start_values, n, derivatives):
+    """Run an FMU at a communication step of ``n`` samples of the input table ``(t, inputs)``
+    (outputs read after each ``doStep``, as masters record them).
+
+    With ``derivatives`` the master passes what the FMI version lets it pass within a step: in
+    FMI 2, after setting each input, its slope at the communication point as
+    ``fmpy.simulate_fmu(..., set_input_derivatives=True)`` computes it from the table (fmpy 0.3's
+    own loop fails with other than nine inputs, so this loop does it); in FMI 3, the table's
+    inputs of each internal sample, set in intermediate update mode. Otherwise the inputs are
+    held over each step.
+
+    Returns
+    -------
+    (rows, dict name -> values): table rows k the outputs belong to (time t[k]), and the outputs
+    """
+    from fmpy.simulation import Input
+    r = FmuRunner(fmu_path, logger=_quiet_logger())
+    try:
+        f = r.fmu
+        three = r.version.startswith("3")
+        setr = f.setFloat64 if three else f.setReal
+        getr = f.getFloat64 if three else f.getReal
+        names = list(inputs)
+        in_vr = [r.vr(k) for k in names]
+        table = np.vstack([np.asarray(inputs[k], float) for k in names])
+        out_vr = [r.vr(k) for k in outputs]
+        Ts = float(t[1] - t[0]) if len(t) > 1 else 1.0
+        t0 = float(t[0])
+
+        def intermediate(env, time_, *rest):      # FMI 3: the inputs of the sample at time_
+            setr(in_vr, list(table[:, int(round((time_ - t0) / Ts))]))
+
+        r.start(t0, intermediate=(intermediate, in_vr) if derivatives and three else None)
+        for k, v in (start_values or {}).items():
+            setr([r.vr(k)], [float(v)])
+        setr(in_vr, list(table[:, 0]))
+        f.exitInitializationMode()
+        rows = list(range(n, len(t), n))
+        out = np.empty((len(rows), len(out_vr)))
+        h = n * Ts
+        for j, k in enumerate(rows):
+            k0 = k - n
+            tk = float(t[0]) + k0 * Ts
+            setr(in_vr, list(table[:, k0]))
+            if derivatives and not three:
+                _, d = Input.interpolate(time=tk, t=np.asarray(t, float), table=table)
+                f.setRealInputDerivatives(in_vr, [1] * len(in_vr), [float(x) for x in d])
+            f.doStep(currentCommunicationPoint=tk, communicationStepSize=h)
+            out[j] = getr(out_vr)
+        f.terminate()
+        return np.asarray(rows), {name: out[:, i] for i, name in enumerate(outputs)}
+    finally:
+        r.close()
+
+
+def _quiet_logger():
+    """An FMI 2 logger that drops messages (the coarse runs' note on held inputs is what they measure)."""
+    from fmpy.fmi2 import fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2CallbackAllocateMemoryTYPE, \
+        fmi2CallbackFreeMemoryTYPE, fmi2StepFinishedTYPE
+    from fmpy import calloc, free
+    cb = fmi2CallbackFunctions()
+    cb.logger = fmi2CallbackLoggerTYPE(lambda *a: None)
+    cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    cb.stepFinished = fmi2StepFinishedTYPE()
+    cb.componentEnvironment = None
+    return cb
+
+
 def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     """Validate an FMU against the reference simulator and a measured trace.
 
@@ -427,12 +554,53 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
         dvel = max(dvel, _maxdiff(out[("vel", a)], r["velocity"]))
     res.max_abs_diff_reference_mm = dpos
     res.max_abs_diff_reference_velocity_mm_s = dvel
+    _coarse_figures(res, fmu_path, t, table, {a: names[("pos", a)] for a in axes},
+                    {var[("v0", ak[a])]: v for a, v in v0.items()}, R, ref, Ts)
     if not dpos <= tolerance_mm:
         sens = rounding_sensitivity(model, trace, start)
         res.reference_sensitivity_mm = sens
         res.problems.append(_reference_problem(dpos, tolerance_mm, sens, _carried_differences(fmu_path, model)))
     _against_measurement(res, model, trace, cmds, out)
     return res
+
+
+def _coarse_figures(res, fmu_path, t, table, pos_names, start_values, R, ref, Ts):
+    """Check 4 of :func:`validate_fmu`: the positions at a master's coarse step, inputs held
+    (``fmpy.simulate_fmu`` as a user first calls it) and with the inputs passed within the step
+    (:func:`run_coarse`), against the reference at the same time stamps."""
+    from fmpy import simulate_fmu
+    h, n = coarse_step(t[-1] - t[0], Ts)
+    res.coarse_step_s, res.coarse_samples = h, n
+    if len(t) <= 2 * n:
+        res.coarse_step_s = float("nan")      # too short a record for a coarser step
+        return
+    sig = np.zeros(len(t), dtype=[("time", float)] + [(k, float) for k in table])
+    sig["time"] = t
+    for k, v in table.items():
+        sig[k] = v
+    outs = list(pos_names.values())
+
+    def worst(rows, got):
+        keep = rows >= R        # rows of the run-up (before the record) are not compared
+        d = 0.0
+        for a, nm in pos_names.items():
+            d = max(d, _maxdiff(np.asarray(got[nm])[keep], ref.axes[a]["position"][rows[keep] - R]))
+        return d
+
+    try:
+        # the FMU's note on held inputs goes to fmpy's default logger, which prints it: kept out of
+        # this report. (No logger= here: fmpy keeps one native pointer to the last logger passed to
+        # simulate_fmu and calls it, freed, for every later FMU that logs through its defaults.)
+        with contextlib.redirect_stdout(io.StringIO()):
+            held = simulate_fmu(str(fmu_path), start_time=float(t[0]), stop_time=float(t[-1]),
+                                output_interval=h, input=sig, output=outs, start_values=dict(start_values),
+                                validate=False)
+        rows = np.rint((np.asarray(held["time"]) - t[0]) / Ts).astype(int)
+        res.max_abs_diff_held_mm = worst(rows, held)
+        rows, got = run_coarse(fmu_path, t, table, outs, start_values, n, derivatives=True)
+        res.max_abs_diff_interpolated_mm = worst(rows, got)
+    except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions
+        res.problems.append(f"the FMU could not be run at a communication step of {h:g} s ({n} samples): {exc}")
 
 
 def _reference_problem(d, tol, sens, carried_differences=()):

@@ -7,12 +7,17 @@
 #include <stdio.h>
 #include <string.h>
 #include <stdlib.h>
+#if defined(_WIN32)
+#include <windows.h>
+#else
+#include <pthread.h>
+#endif
 
 #include "model_data.h"
 #include "fdid_instance.h"
 
 static const char *const CATEGORY_NAMES[FDID_N_CAT] = {"logStatusWarning", "logStatusError",
-                                                       "logStatusFatal", "logCalls"};
+                                                       "logStatusFatal", "logCalls", "logStatusWarning"};
 
 typedef struct {
     unsigned magic;
@@ -71,12 +76,13 @@ static const char *state_name(const FdidInstance *I) {
     case FDID_ST_STEP: return I->api->step_mode_name;
     case FDID_ST_TERMINATED: return "terminated";
     case FDID_ST_ERROR: return "error";
+    case FDID_ST_UPDATE: return "intermediate update mode";
     default: return "fatal";
     }
 }
 
 int fdid_begin(FdidInstance *I, const char *fn, int mask) {
-    if (!I) return 0;
+    if (!I || !fdid_live(I)) return 0;
     fdid_log(I, FDID_OK, FDID_CAT_CALLS, "%s", fn);
     if (I->mode & mask) return 1;
     fdid_fail(I, "%s may not be called in the %s state", fn, state_name(I));
@@ -86,7 +92,7 @@ int fdid_begin(FdidInstance *I, const char *fn, int mask) {
 int fdid_set_debug_logging(FdidInstance *I, const char *fn, int on, size_t n, const char *const categories[]) {
     size_t i;
     int k, status = FDID_OK;
-    if (!I || I->mode == FDID_ST_FATAL) return FDID_ERROR;
+    if (!I || !fdid_live(I) || I->mode == FDID_ST_FATAL) return FDID_ERROR;
     if (n == 0) {
         for (k = 0; k < FDID_N_CAT; k++) I->log_on[k] = on ? 1 : 0;
         return FDID_OK;
@@ -113,6 +119,73 @@ int fdid_set_debug_logging(FdidInstance *I, const char *fn, int on, size_t n, co
     return status;
 }
 
+/* ------------------------------------------------------------------ live instances */
+/* The one piece of state shared by the instances of this FMU in a process: the addresses of the
+ * live ones, so that an instance freed twice or used after FreeInstance is refused instead of
+ * touched. The table lives in the C library's heap (not the master's: it outlives any one
+ * instance) and is freed when the last instance goes. */
+#if defined(_WIN32)
+static SRWLOCK registry_lock = SRWLOCK_INIT;
+static void registry_acquire(void) { AcquireSRWLockExclusive(&registry_lock); }
+static void registry_release(void) { ReleaseSRWLockExclusive(&registry_lock); }
+#else
+static pthread_mutex_t registry_lock = PTHREAD_MUTEX_INITIALIZER;
+static void registry_acquire(void) { pthread_mutex_lock(&registry_lock); }
+static void registry_release(void) { pthread_mutex_unlock(&registry_lock); }
+#endif
+static const FdidInstance **registry = NULL;
+static size_t registry_n = 0, registry_cap = 0;
+
+/* 1 after adding I, 0 when out of memory */
+static int registry_add(const FdidInstance *I) {
+    int ok = 1;
+    registry_acquire();
+    if (registry_n == registry_cap) {
+        size_t cap = registry_cap ? 2 * registry_cap : 16;
+        const FdidInstance **grown = (const FdidInstance **)realloc((void *)registry, cap * sizeof *grown);
+        if (grown) {
+            registry = grown;
+            registry_cap = cap;
+        } else {
+            ok = 0;
+        }
+    }
+    if (ok) registry[registry_n++] = I;
+    registry_release();
+    return ok;
+}
+
+/* 1 when I was live (and is now removed), 0 when it was not */
+static int registry_remove(const FdidInstance *I) {
+    size_t i;
+    int found = 0;
+    registry_acquire();
+    for (i = 0; i < registry_n; i++) {
+        if (registry[i] == I) {
+            registry[i] = registry[--registry_n];
+            found = 1;
+            break;
+        }
+    }
+    if (registry_n == 0) {
+        free((void *)registry);
+        registry = NULL;
+        registry_cap = 0;
+    }
+    registry_release();
+    return found;
+}
+
+int fdid_live(const FdidInstance *I) {
+    size_t i;
+    int found = 0;
+    if (!I) return 0;
+    registry_acquire();
+    for (i = 0; i < registry_n && !found; i++) found = registry[i] == I;
+    registry_release();
+    return found;
+}
+
 /* ------------------------------------------------------------------ memory, life cycle */
 /* the master's memory functions when it gave both, else the C library's */
 static int use_callbacks(const FdidInstance *I) { return I->allocate_memory && I->free_memory; }
@@ -130,18 +203,24 @@ void fdid_free(const FdidInstance *I, void *p) {
 
 FdidInstance *fdid_instantiate(const FdidInstance *proto, size_t size, const char *fn) {
     size_t nbuf = fdid_buffer_size(&fdid_model), nname = strlen(proto->name) + 1;
+    size_t nslope = 2 * (size_t)(fdid_model.n_axes + fdid_model.m);   /* derivatives, then held values */
     FdidInstance *I = (FdidInstance *)fdid_alloc(proto, 1, size);
     double *buf = (double *)fdid_alloc(proto, nbuf ? nbuf : 1, sizeof(double));
+    double *slope = (double *)fdid_alloc(proto, nslope ? nslope : 1, sizeof(double));
     char *name = (char *)fdid_alloc(proto, nname, 1);
-    if (!I || !buf || !name) {
+    if (!I || !buf || !slope || !name || !registry_add(I)) {
         fdid_free(proto, I);
         fdid_free(proto, buf);
+        fdid_free(proto, slope);
         fdid_free(proto, name);
         fdid_log(proto, FDID_FATAL, FDID_CAT_FATAL, "%s: out of memory", fn);
         return NULL;
     }
     memcpy(I, proto, size);
     memcpy(name, proto->name, nname);
+    memset(slope, 0, (nslope ? nslope : 1) * sizeof(double));
+    I->slope = slope;
+    I->coarse_noted = 0;
     I->name = name;
     I->mode = FDID_ST_INSTANTIATED;
     I->start_time = 0.0;
@@ -152,10 +231,13 @@ FdidInstance *fdid_instantiate(const FdidInstance *proto, size_t size, const cha
 
 void fdid_free_instance(FdidInstance *I, const char *fn) {
     FdidInstance copy;
-    if (!I) return;
+    /* NULL, an instance freed before, or a pointer that never was one: nothing to free, and
+     * nothing may be read through it (not even a logger) */
+    if (!I || !registry_remove(I)) return;
     fdid_log(I, FDID_OK, FDID_CAT_CALLS, "%s", fn);
     copy = *I; /* the memory functions, for freeing I itself */
     fdid_free(I, I->s.buf);
+    fdid_free(I, I->slope);
     fdid_free(I, I->name);
     fdid_free(&copy, I);
 }
@@ -185,6 +267,7 @@ void fdid_exit_initialization(FdidInstance *I) {
 void fdid_terminate(FdidInstance *I) { I->mode = FDID_ST_TERMINATED; }
 
 void fdid_reset(FdidInstance *I) {
+    memset(I->slope, 0, (size_t)(fdid_model.n_axes + fdid_model.m) * sizeof(double));
     fdid_state_defaults(&I->s);
     I->start_time = 0.0;
     I->stop_defined = 0;
@@ -198,11 +281,14 @@ double fdid_time(const FdidInstance *I) {
 /* ------------------------------------------------------------------ get / set */
 static const FdidVar *lookup(FdidInstance *I, const char *fn, unsigned vr, int type) {
     const FdidVar *v;
-    if (vr >= (unsigned)fdid_model.n_vars) {
-        fdid_fail(I, "%s: unknown value reference %u (the model has %d variables)", fn, vr, fdid_model.n_vars);
+    /* value references FDID_FIRST_VR ... FDID_FIRST_VR + n_vars - 1 name the variable table in
+     * order (fmu/layout.py, FIRST_VR) */
+    if (vr < FDID_FIRST_VR || vr - FDID_FIRST_VR >= (unsigned)fdid_model.n_vars) {
+        fdid_fail(I, "%s: unknown value reference %u (the model's variables have value references %u to %u)", fn,
+                  vr, (unsigned)FDID_FIRST_VR, (unsigned)FDID_FIRST_VR + (unsigned)fdid_model.n_vars - 1u);
         return NULL;
     }
-    v = &fdid_model.vars[vr];
+    v = &fdid_model.vars[vr - FDID_FIRST_VR];
     if (v->type != type) {
         fdid_fail(I, "%s: value reference %u (%s) is not of this type", fn, vr, v->name);
         return NULL;
@@ -289,9 +375,54 @@ int fdid_get_boolean(FdidInstance *I, const char *fn, unsigned vr, int *value) {
     return 1;
 }
 
+/* where the derivative of an input variable is kept (NULL for other variables) */
+static double *slope_of(FdidInstance *I, const FdidVar *v) {
+    if (v->role == FDID_V_CMD) return &I->slope[v->index];
+    if (v->role == FDID_V_EXT) return &I->slope[fdid_model.n_axes + v->index];
+    return NULL;
+}
+
+int fdid_is_input(unsigned vr) {
+    const FdidVar *v;
+    if (vr < FDID_FIRST_VR || vr - FDID_FIRST_VR >= (unsigned)fdid_model.n_vars) return 0;
+    v = &fdid_model.vars[vr - FDID_FIRST_VR];
+    return v->role == FDID_V_CMD || v->role == FDID_V_EXT;
+}
+
 int fdid_set_real(FdidInstance *I, const char *fn, unsigned vr, double value) {
     const FdidVar *v = lookup(I, fn, vr, FDID_T_REAL);
-    return v && set_value(I, fn, v, value);
+    double *slope;
+    if (!v) return 0;
+    if (I->mode == FDID_ST_UPDATE && v->role != FDID_V_CMD && v->role != FDID_V_EXT) {
+        fdid_fail(I, "%s: %s cannot be set in intermediate update mode (inputs only)", fn, v->name);
+        return 0;
+    }
+    if (!set_value(I, fn, v, value)) return 0;
+    /* a derivative belongs to the value it was set with, at the start of a communication step
+     * (FMI 2.0.4 section 4.2.1): a new value without one is held */
+    if ((slope = slope_of(I, v)) != NULL) *slope = 0.0;
+    return 1;
+}
+
+int fdid_set_input_derivative(FdidInstance *I, const char *fn, unsigned vr, int order, double value) {
+    const FdidVar *v = lookup(I, fn, vr, FDID_T_REAL);
+    double *slope;
+    if (!v) return 0;
+    if ((slope = slope_of(I, v)) == NULL) {
+        fdid_fail(I, "%s: %s is not an input (derivatives can be set for inputs only)", fn, v->name);
+        return 0;
+    }
+    if (order != 1) {
+        fdid_fail(I, "%s: derivative of order %d of %s given; the FMU interpolates its inputs linearly "
+                     "and takes first derivatives (order 1) only", fn, order, v->name);
+        return 0;
+    }
+    if (!fdid_is_finite(value)) {
+        fdid_fail(I, "%s: the derivative of %s must be finite, got a NaN or infinite value", fn, v->name);
+        return 0;
+    }
+    *slope = value;
+    return 1;
 }
 
 int fdid_set_boolean(FdidInstance *I, const char *fn, unsigned vr, int value) {
@@ -488,9 +619,75 @@ static double grid_tolerance(double t) {
     return 1e-6 * fdid_model.Ts + (rounding < cap ? rounding : cap);
 }
 
+/* the internal steps of one doStep: inputs held, or set by the master before each sample after
+ * the first (FMI 3 intermediate update, I->between_samples), or moved along the derivatives set
+ * for this step (FMI 2: sample j of the step gets u + j Ts du/dt). The values set at the start
+ * of the step are what the FMU holds afterwards, and the derivatives are used up. */
+static int advance_inputs(FdidInstance *I, const char *fn, double h, long long nsteps) {
+    FdidState *S = &I->s;
+    int na = fdid_model.n_axes, m = fdid_model.m, a, i, sloped = 0;
+    double *held;
+    long long k;
+    for (i = 0; i < na + m; i++) sloped |= I->slope[i] != 0.0;
+    if (nsteps > 1 && !I->coarse_noted && !I->between_samples) {
+        I->coarse_noted = 1;
+        fdid_log(I, FDID_WARNING, FDID_CAT_NOTE,
+                 "%s: communication step %.6g s = %lld samples of Ts = %.6g s: each input is held for %lld "
+                 "samples%s; step at %.6g s to feed every sample (this note is given once)", fn, h, nsteps,
+                 fdid_model.Ts, nsteps,
+                 I->api->input_derivatives ? " unless its derivative is set (fmi2SetRealInputDerivatives: "
+                                             "then it follows that slope within the step)" : "",
+                 fdid_model.Ts);
+    }
+    if (I->between_samples && nsteps > 1) {
+        /* the master sets the inputs of each sample of the step (FMI 3 intermediate update) */
+        held = I->slope + na + m;
+        for (a = 0; a < na; a++) held[a] = S->cmd[a];
+        for (i = 0; i < m; i++) held[na + i] = S->ext[i];
+        for (k = 0; k < nsteps; k++) {
+            if (k > 0) {
+                double t = I->start_time + (double)S->f.steps * fdid_model.Ts;
+                S->f.started = 1;       /* inputs set now belong to this sample, not to the start */
+                I->mode = FDID_ST_UPDATE;
+                I->between_samples(I, t);
+                if (I->mode != FDID_ST_UPDATE) return FDID_ERROR;   /* a refused set: logged there */
+                I->mode = FDID_ST_STEP;
+                S->f.out_dirty = 1;
+            }
+            fdid_advance(S);
+        }
+        for (a = 0; a < na; a++) S->cmd[a] = held[a];
+        for (i = 0; i < m; i++) S->ext[i] = held[na + i];
+        S->f.out_dirty = 1;
+        return FDID_OK;
+    }
+    if (!sloped) {
+        for (k = 0; k < nsteps; k++) fdid_advance(S);
+        return FDID_OK;
+    }
+    held = I->slope + na + m;
+    for (a = 0; a < na; a++) held[a] = S->cmd[a];
+    for (i = 0; i < m; i++) held[na + i] = S->ext[i];
+    for (k = 0; k < nsteps; k++) {
+        double dt = (double)k * fdid_model.Ts;
+        if (k > 0) {
+            for (a = 0; a < na; a++) S->cmd[a] = held[a] + dt * I->slope[a];
+            for (i = 0; i < m; i++)
+                if (fdid_model.inputs[i].kind == FDID_IN_EXTERNAL) S->ext[i] = held[na + i] + dt * I->slope[na + i];
+            S->f.out_dirty = 1;
+        }
+        fdid_advance(S);
+    }
+    for (a = 0; a < na; a++) S->cmd[a] = held[a];
+    for (i = 0; i < m; i++) S->ext[i] = held[na + i];
+    for (i = 0; i < na + m; i++) I->slope[i] = 0.0;
+    S->f.out_dirty = 1;
+    return FDID_OK;
+}
+
 int fdid_do_step(FdidInstance *I, const char *fn, double t_comm, double h) {
     double Ts = fdid_model.Ts, t = fdid_time(I), t_end, q, off;
-    long long k, nsteps;
+    long long nsteps;
     if (!fdid_is_finite(h) || !(h > 0.0))
         return fdid_fail(I, "%s: communication step size must be a positive number, got %g s", fn, h);
     if (!fdid_is_finite(t_comm)) return fdid_fail(I, "%s: currentCommunicationPoint is not finite", fn);
@@ -507,6 +704,9 @@ int fdid_do_step(FdidInstance *I, const char *fn, double t_comm, double h) {
                          Ts, I->start_time);
     nsteps = (long long)(q + 0.5) - I->s.f.steps;
     off = t_end - (I->start_time + (double)(I->s.f.steps + nsteps) * Ts);
+    /* a step that ends on the sample the FMU is at: the sliver a master whose clock adds up its
+     * steps takes to reach its stop time (3.049 s - 3.0489999999997752 s = 2.2e-13 s) */
+    if (nsteps == 0 && absd(off) <= grid_tolerance(t_end)) return FDID_OK;
     if (nsteps < 1 || absd(off) > grid_tolerance(t_end)) {
         /* a whole number of samples from a point that is off the FMU's time: a master whose clock
          * adds up its steps (t += h) drifts by their rounding, which grows with |t| */
@@ -529,7 +729,7 @@ int fdid_do_step(FdidInstance *I, const char *fn, double t_comm, double h) {
         return fdid_fail(I, "%s: the step would end at %.17g s, past the stop time %.17g s", fn, t_end,
                          I->stop_time);
     if (!friction_resolved(I, fn)) return FDID_ERROR;     /* logged there */
-    for (k = 0; k < nsteps; k++) fdid_advance(&I->s);
+    if (advance_inputs(I, fn, h, nsteps) != FDID_OK) return FDID_ERROR;
     I->s.f.started = 1;
     /* a step that leaves the model's state non-finite failed: report it here, not first at a
      * later fmi*Get (a master that reads other outputs, or none, would go on with OK), and never

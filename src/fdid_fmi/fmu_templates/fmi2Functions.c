@@ -43,7 +43,7 @@ static void emit(const FdidInstance *B, int status, const char *category, const 
     I->cb.logger(I->cb.componentEnvironment, B->name ? B->name : "?", (fmi2Status)status, category, esc);
 }
 
-static const FdidApi API = {"fmi2", "step mode (slave initialized)", "FMUstate", 0x46444944u /* "FDID" */, 1, emit};
+static const FdidApi API = {"fmi2", "step mode (slave initialized)", "FMUstate", 0x46444944u /* "FDID" */, 1, 1, emit};
 
 #define CHECK(c, fn, mask)                        \
     FdidInstance *I = (FdidInstance *)(c);        \
@@ -76,7 +76,8 @@ FMI2_Export fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuT
         tmp.base.free_memory = functions->freeMemory;
     }
     tmp.base.name = (char *)(instanceName ? instanceName : "?");
-    tmp.base.log_on[FDID_CAT_ERROR] = tmp.base.log_on[FDID_CAT_FATAL] = 1;
+    /* errors, and the one note on held inputs, reach the master even with loggingOn = false */
+    tmp.base.log_on[FDID_CAT_ERROR] = tmp.base.log_on[FDID_CAT_FATAL] = tmp.base.log_on[FDID_CAT_NOTE] = 1;
     tmp.base.log_on[FDID_CAT_WARNING] = tmp.base.log_on[FDID_CAT_CALLS] = loggingOn ? 1 : 0;
     if (!instanceName || !instanceName[0]) {
         fdid_log(&tmp.base, FDID_ERROR, FDID_CAT_ERROR, "fmi2Instantiate: missing instance name");
@@ -254,11 +255,18 @@ FMI2_Export fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2V
 }
 
 /* ------------------------------------------------------------ co-simulation */
+/* canInterpolateInputs = true: first derivatives of the inputs, used by the next fmi2DoStep
+ * (internal sample j of the step gets u + j Ts du/dt); fmi2SetReal of an input clears its
+ * derivative */
 FMI2_Export fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                                    const fmi2Integer order[], const fmi2Real value[]) {
-    CHECK(c, "fmi2SetRealInputDerivatives", FDID_ANY_STATE)
-    (void)vr; (void)nvr; (void)order; (void)value;
-    return FAIL("fmi2SetRealInputDerivatives: inputs are held constant over a step (canInterpolateInputs=false)");
+    size_t i;
+    CHECK(c, "fmi2SetRealInputDerivatives", FDID_SET_STATES)
+    if (nvr > 0 && (!vr || !order || !value)) return FAIL("fmi2SetRealInputDerivatives: NULL argument");
+    for (i = 0; i < nvr; i++)
+        if (!fdid_set_input_derivative(I, "fmi2SetRealInputDerivatives", vr[i], (int)order[i], value[i]))
+            return fmi2Error;
+    return fmi2OK;
 }
 
 FMI2_Export fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,

@@ -1,5 +1,9 @@
 /* fmi3Functions.c -- FMI 3.0 Co-Simulation API of an fdid-fmi FMU (written once).
  *
+ * Intermediate update (providesIntermediateUpdate): a master that gives an intermediateUpdate
+ * callback and input value references in requiredIntermediateVariables is called back before
+ * each internal sample of a doStep after the first, and may set the inputs of that sample.
+ *
  * Same behaviour as fmi2Functions.c: both wrap the instance bookkeeping of fdid_instance.c
  * (state machine, value references, checks on set values, FMU states, doStep).
  * Float64 inputs/outputs/parameters and Boolean parameters; no event mode, no clocks, no
@@ -27,6 +31,7 @@ typedef struct {
     FdidInstance base; /* first member: an fmi3Instance is an FdidInstance */
     fmi3InstanceEnvironment env;
     fmi3LogMessageCallback logger;
+    fmi3IntermediateUpdateCallback update;   /* the master's, when it asked to set inputs in doStep */
 } Instance;
 
 static void emit(const FdidInstance *B, int status, const char *category, const char *message) {
@@ -34,7 +39,17 @@ static void emit(const FdidInstance *B, int status, const char *category, const 
     if (I->logger) I->logger(I->env, (fmi3Status)status, category, message);
 }
 
-static const FdidApi API = {"fmi3", "step mode", "FMUState", 0x46444933u /* "FDI3" */, 0, emit};
+static const FdidApi API = {"fmi3", "step mode", "FMUState", 0x46444933u /* "FDI3" */, 0, 0, emit};
+
+/* intermediate update before an internal sample of a doStep (providesIntermediateUpdate): the
+ * master may set the inputs of that sample (FMI 3.0 section 4.2.3, intermediate update mode) */
+static void between_samples(FdidInstance *B, double t) {
+    Instance *I = (Instance *)B;
+    fmi3Boolean early = fmi3False;
+    fmi3Float64 early_time = t;
+    I->update(I->env, t, fmi3True /* intermediateVariableSetRequested */, fmi3False /* GetAllowed */,
+              fmi3True /* intermediateStepFinished */, fmi3False /* canReturnEarly */, &early, &early_time);
+}
 
 #define CHECK(c, fn, mask)                        \
     FdidInstance *I = (FdidInstance *)(c);        \
@@ -81,8 +96,8 @@ FMI3_Export fmi3Instance fmi3InstantiateCoSimulation(
     fmi3InstanceEnvironment instanceEnvironment, fmi3LogMessageCallback logMessage,
     fmi3IntermediateUpdateCallback intermediateUpdate) {
     Instance tmp;
-    (void)resourcePath; (void)visible; (void)earlyReturnAllowed; (void)requiredIntermediateVariables;
-    (void)intermediateUpdate;
+    size_t i;
+    (void)resourcePath; (void)visible; (void)earlyReturnAllowed;
     memset(&tmp, 0, sizeof tmp);
     tmp.base.api = &API;
     tmp.env = instanceEnvironment;
@@ -91,6 +106,7 @@ FMI3_Export fmi3Instance fmi3InstantiateCoSimulation(
      * contrast, expects errors to be logged: fmi2Functions.c) */
     tmp.base.log_on[FDID_CAT_ERROR] = tmp.base.log_on[FDID_CAT_FATAL] = loggingOn ? 1 : 0;
     tmp.base.log_on[FDID_CAT_WARNING] = tmp.base.log_on[FDID_CAT_CALLS] = loggingOn ? 1 : 0;
+    tmp.base.log_on[FDID_CAT_NOTE] = loggingOn ? 1 : 0;
     if (!instanceName || !instanceName[0]) {
         fdid_log(&tmp.base, FDID_ERROR, FDID_CAT_ERROR, "fmi3InstantiateCoSimulation: missing instance name");
         return NULL;
@@ -100,10 +116,24 @@ FMI3_Export fmi3Instance fmi3InstantiateCoSimulation(
                                                         "(hasEventMode=false)");
         return NULL;
     }
-    if (nRequiredIntermediateVariables > 0) {
+    /* intermediate update: inputs only (set by the master before each internal sample of a step) */
+    if (nRequiredIntermediateVariables > 0 && !requiredIntermediateVariables) {
         fdid_log(&tmp.base, FDID_ERROR, FDID_CAT_ERROR,
-                 "fmi3InstantiateCoSimulation: intermediate update is not provided");
+                 "fmi3InstantiateCoSimulation: requiredIntermediateVariables is NULL");
         return NULL;
+    }
+    for (i = 0; i < nRequiredIntermediateVariables; i++) {
+        if (!fdid_is_input(requiredIntermediateVariables[i])) {
+            fdid_log(&tmp.base, FDID_ERROR, FDID_CAT_ERROR,
+                     "fmi3InstantiateCoSimulation: required intermediate variable %u is not an input (in "
+                     "intermediate update mode the master can set inputs only)",
+                     (unsigned)requiredIntermediateVariables[i]);
+            return NULL;
+        }
+    }
+    if (nRequiredIntermediateVariables > 0 && intermediateUpdate) {
+        tmp.update = intermediateUpdate;
+        tmp.base.between_samples = between_samples;
     }
     if (!instantiationToken || strcmp(instantiationToken, fdid_model.guid) != 0) {
         fdid_log(&tmp.base, FDID_ERROR, FDID_CAT_ERROR,
@@ -170,7 +200,7 @@ FMI3_Export fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueRefe
 FMI3_Export fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                       size_t nValueReferences, const fmi3Float64 values[], size_t nValues) {
     size_t i;
-    CHECK(instance, "fmi3SetFloat64", FDID_SET_STATES)
+    CHECK(instance, "fmi3SetFloat64", FDID_SET_STATES | FDID_ST_UPDATE)
     if (nValues != nValueReferences) return FAIL("fmi3SetFloat64: nValues must equal nValueReferences");
     if (nValueReferences > 0 && (!valueReferences || !values)) return FAIL("fmi3SetFloat64: NULL argument");
     for (i = 0; i < nValueReferences; i++) {
