@@ -125,3 +125,13 @@ def test_fdid_validate_says_it_in_one_line(capsys, tmp_path, good, case):
         words = ("bad.fmu", "member 'modelDescription.xml' inflates to 65 MiB")
     code, _, err = run(capsys, "validate", bad, csv)
     one_line(code, err, *words)
+
+
+def test_the_report_lists_no_variables_of_an_unsafe_fmu(tmp_path, good):
+    from fdid_fmi.report import Report, _fmu_variables
+    bad = _copy(good, tmp_path / "slip.fmu", extra=[("../evil.txt", b"x")])
+    rep = Report("FMU")
+    _fmu_variables(rep, bad)
+    assert "fmu_variables" not in rep.tables
+    assert any("could not be read" in str(p) and "'../evil.txt' has a '..' component" in str(p)
+               for _, p in rep._blocks)
