@@ -135,3 +135,10 @@ def test_the_report_lists_no_variables_of_an_unsafe_fmu(tmp_path, good):
     assert "fmu_variables" not in rep.tables
     assert any("could not be read" in str(p) and "'../evil.txt' has a '..' component" in str(p)
                for _, p in rep._blocks)
+
+
+def test_the_members_together_are_capped_too(good):
+    check_fmu_archive(good)                              # an exported FMU is far below both caps
+    with pytest.raises(InputError, match=r"the members inflate to 0\.\d+ MiB together, more than the "
+                                         r"0\.0009537 MiB an FMU may have; refused"):
+        check_fmu_archive(good, max_total=1000)
