@@ -30,7 +30,7 @@ from fdid_fmi.fmu import export_fmu
 from fdid_fmi.fmu.build import CFLAGS, compiler_available
 from fdid_fmi.fmu.description import model_description_fmi2, model_description_fmi3
 from fdid_fmi.fmu.layout import build_layout
-from fdid_fmi.model import DriveModel, load_model
+from fdid_fmi.model import BIDI_CONTROLS, DriveModel, load_model
 
 pytestmark = pytest.mark.skipif(not compiler_available("linux64"), reason="gcc is not installed")
 
@@ -276,7 +276,8 @@ def test_a_port_named_time_does_not_clash_with_fmi3_time(tmp_path):
 
 @settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(name=st.from_regex(r"[A-Za-z_][A-Za-z0-9_]{0,20}", fullmatch=True),
-       desc=st.text(st.characters(blacklist_categories=("Cc", "Cs", "Zl", "Zp")), max_size=40))
+       desc=st.text(st.characters(blacklist_categories=("Cc", "Cs", "Zl", "Zp"),
+                                  blacklist_characters="".join(map(chr, BIDI_CONTROLS))), max_size=40))
 def test_random_valid_names_export_and_load(tmp_path_factory, name, desc):
     """Random legal names and descriptions through the whole export, then loaded by fmpy."""
     if name in ("x_cmd", "x_dnf"):

@@ -111,7 +111,7 @@ def test_directory_is_not_a_regular_file(capsys, tmp_path, model, cmd):
     if cmd == "validate-model":     # a real FMU, so the --model directory is what is refused
         assert main(["export", str(model), "-o", str(tmp_path / "none.fmu")]) == 0
         capsys.readouterr()
-    line = one_line(*run(capsys, *argv), "adir", "is not a regular file (a directory?)")
+    line = one_line(*run(capsys, *argv), "adir", "is a directory, not a regular file")
     assert "not found" not in line
 
 

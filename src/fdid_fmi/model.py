@@ -656,9 +656,15 @@ def check_name(name, what, source=None):
     return name
 
 
+# bidirectional-text controls (embeddings, overrides, isolates, marks): printed in an XML file, a
+# tool's variable list or a log they reorder what follows, so a name can read as another
+BIDI_CONTROLS = frozenset([*range(0x202A, 0x202F), *range(0x2066, 0x206A), 0x200E, 0x200F, 0x061C])
+
+
 def check_text(text, what, column=None, source=None, max_len=MAX_TEXT):
     """Raise InputError unless ``text`` is printable UTF-8 (no control characters, no lone
-    surrogates, no line breaks) of at most ``max_len`` characters."""
+    surrogates, no line breaks, no bidirectional-text controls: ``BIDI_CONTROLS``) of at most
+    ``max_len`` characters."""
     if not isinstance(text, str):
         raise InputError(f"{what} must be a string, got {type(text).__name__} {_short(text)}",
                          source=source, column=column)
@@ -670,6 +676,10 @@ def check_text(text, what, column=None, source=None, max_len=MAX_TEXT):
                 or (o & 0xFFFE) == 0xFFFE):
             raise InputError(f"{what} has the non-printable character U+{o:04X} at position {k + 1}; "
                              f"expected printable text", source=source, column=column)
+        if o in BIDI_CONTROLS:
+            raise InputError(f"{what} has the bidirectional-text control character U+{o:04X} at position "
+                             f"{k + 1} (it reorders how the text is displayed); expected printable text "
+                             f"without direction controls", source=source, column=column)
     return text
 
 

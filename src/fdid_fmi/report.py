@@ -356,6 +356,8 @@ def _flatten_metrics(m, prefix=""):
 def _fmu_variables(rep, fmu):
     try:
         from fmpy import read_model_description
+        from .fmu.archive import check_fmu_archive
+        check_fmu_archive(fmu)              # member paths and sizes, before fmpy inflates it
         md = read_model_description(str(fmu))
     except Exception as exc:  # noqa: BLE001
         rep.add_text(f"FMU {fmu}: its model description could not be read ({exc}).")

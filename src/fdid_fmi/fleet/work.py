@@ -467,8 +467,8 @@ def from_inputs(exc, entry_dir) -> bool:
     a rerun with the same inputs may reuse it. Not so: the C compiler missing on this worker or
     failing (killed, out of memory), an output of the entry's own folder that cannot be written
     (disk full) -- those were kept as failed by every rerun until the inputs changed."""
-    from ..fmu.build import BuildError, CompilerNotFound
-    if isinstance(exc, (BuildError, CompilerNotFound)):
+    from ..fmu.build import BuildError, CompilerNotFound, NoRoomError
+    if isinstance(exc, (BuildError, CompilerNotFound, NoRoomError)):      # NoRoomError: a full disk
         return False
     if isinstance(exc, InputError):
         if exc.source:

@@ -9,9 +9,11 @@ the exported fmi* symbols stay in the dynamic symbol table.
 """
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import subprocess
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,6 +27,49 @@ class BuildError(FdidError):
 class CompilerNotFound(InputError):
     """The C compiler of a platform is not installed on this machine: a fault of the environment,
     not of the model or the options (the fleet retries an entry that met it on a worker)."""
+
+
+class NoRoomError(InputError):
+    """Writing the FMU or its build files failed for want of room: a full file system, an
+    exhausted disk quota, or the process's file-size limit (``ulimit -f``)."""
+
+
+# errno of a write that failed for want of room, and how a compiler's tools say it
+ROOM_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+_ROOM_TEXTS = (("No space left on device", errno.ENOSPC), ("Disk quota exceeded", errno.EDQUOT),
+               ("File size limit exceeded", errno.EFBIG), ("File too large", errno.EFBIG))
+
+
+def _file_size_limit():
+    """This process's file-size limit as ``ulimit -f`` shows it, in words."""
+    try:
+        import resource
+        soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    except (ImportError, OSError, ValueError):
+        return "ulimit -f"
+    return "ulimit -f" if soft == resource.RLIM_INFINITY else f"ulimit -f: {soft} bytes"
+
+
+def no_room(code, folder, what):
+    """NoRoomError for a write of ``what`` (``"the FMU's build files"``) into ``folder`` that
+    failed with errno ``code`` (one of ``ROOM_ERRNOS``), saying what to do about it."""
+    if code == errno.EFBIG:
+        return NoRoomError(f"cannot write {what}: a file would exceed this process's file-size limit "
+                           f"({_file_size_limit()}); raise the limit", source=str(folder))
+    full = "its disk quota is exhausted" if code == errno.EDQUOT else "no space is left on its device"
+    if Path(folder) == Path(tempfile.gettempdir()):
+        where, hint = "the temporary folder", "free space there or set TMPDIR to a folder with room"
+    else:
+        where, hint = "this folder", "free space there or write the FMU to another folder"
+    return NoRoomError(f"cannot write {what} in {where}: {full}; {hint}", source=str(folder))
+
+
+def room_errno(text):
+    """The errno (ENOSPC, EDQUOT, EFBIG) a compiler's output reports a failed write with, or None."""
+    for words, code in _ROOM_TEXTS:
+        if words in text:
+            return code
+    return None
 
 
 @dataclass(frozen=True)
@@ -65,7 +110,10 @@ def compile_binary(src_dir, sources, out_file, platform, uses_libm):
     Raises
     ------
     CompilerNotFound  (an InputError) when the compiler of the platform is not installed
-    BuildError   when compilation fails (with the compiler's messages)
+    NoRoomError  (an InputError) when the compiler could not write its output or temporary files:
+                 a full device or quota (the temporary folder, or that of ``out_file``), or the
+                 file-size limit
+    BuildError   when compilation fails otherwise (with the compiler's messages)
     """
     p = _platform(platform)
     cc = shutil.which(p.compiler)
@@ -82,5 +130,10 @@ def compile_binary(src_dir, sources, out_file, platform, uses_libm):
         cmd.append("-lm")
     res = subprocess.run(cmd, capture_output=True, text=True)
     if res.returncode != 0:
+        code = room_errno(res.stdout + res.stderr)
+        if code is not None:      # it writes its temporaries in TMPDIR, the library beside out_file
+            tmp = Path(tempfile.gettempdir())
+            folder = tmp if code == errno.EFBIG or out_file.is_relative_to(tmp) else out_file.parent
+            raise no_room(code, folder, f"the compiled FMU binary ({p.compiler})")
         raise BuildError(f"{p.compiler} failed ({' '.join(cmd)}):\n{res.stdout}{res.stderr}")
     return out_file

@@ -26,7 +26,7 @@ from pathlib import Path
 from ..errors import FdidError, InputError
 from ..model import DriveModel, QuasiStaticModel, check_text, load_model
 from ..outputs import atomic_path, check_output
-from .build import PLATFORMS, compile_binary
+from .build import PLATFORMS, ROOM_ERRNOS, compile_binary, no_room
 from .codegen import model_data_c, model_data_h
 from .description import build_description_fmi3, model_description_fmi2, model_description_fmi3
 from .layout import build_layout, check_exportable
@@ -135,40 +135,64 @@ def export_fmu(model, path, fmi_version=2, platforms=("linux64",), backend="c",
     layout = build_layout(model)
     guid = fmu_guid(model, fmi_version, ident)
     tdir = templates_dir()
-    with tempfile.TemporaryDirectory(prefix="fdid_fmu_") as tmp:
+    try:
+        tmpdir = tempfile.TemporaryDirectory(prefix="fdid_fmu_")
+    except OSError as exc:
+        if exc.errno in ROOM_ERRNOS:
+            raise no_room(exc.errno, tempfile.gettempdir(), "the FMU's build files") from None
+        raise
+    with tmpdir as tmp:
         root = Path(tmp) / "fmu"
-        src = root / "sources"
-        src.mkdir(parents=True)
-        plumbing = PLUMBING[fmi_version]
-        sources = [*CORE_SOURCES, plumbing, "model_data.c"]
-        for f in (*CORE_SOURCES, plumbing, *HEADERS):
-            shutil.copy(tdir / f, src / f)
-        for f in FMI_HEADERS[fmi_version]:
-            shutil.copy(tdir / "include" / f, src / f)
-        (src / "model_data.h").write_text(model_data_h(layout, guid, ident), encoding="ascii")
-        (src / "model_data.c").write_text(model_data_c(layout, guid, ident), encoding="ascii")
-        for plat in platforms:
-            p = PLATFORMS[plat]
-            bdir = p.fmi2_dir if fmi_version == 2 else p.fmi3_dir
-            compile_binary(src, sources, root / "binaries" / bdir / f"{ident}{p.suffix}", plat,
-                           layout.uses_libm)
-        if fmi_version == 2:
-            xml = model_description_fmi2(layout, guid, ident, description, source_files=sources)
-        else:
-            xml = model_description_fmi3(layout, guid, ident, description)
-            (src / "buildDescription.xml").write_text(build_description_fmi3(ident, sources, layout.uses_libm),
-                                                      encoding="utf-8")
-        (root / "modelDescription.xml").write_text(xml, encoding="utf-8")
-        res = root / "resources"
-        res.mkdir()
-        model.save(res / "model.json")
+        try:
+            _build_tree(root, model, layout, guid, ident, fmi_version, platforms, description, tdir)
+        except OSError as exc:   # a copy's error names the template it read, not the file it wrote
+            if exc.errno in ROOM_ERRNOS:
+                raise no_room(exc.errno, tempfile.gettempdir(), "the FMU's build files") from None
+            raise
         with atomic_path(path) as tmpzip:
-            with zipfile.ZipFile(tmpzip, "w", zipfile.ZIP_DEFLATED) as zf:
-                for f in sorted(root.rglob("*")):
-                    if f.is_file():
-                        zf.write(f, f.relative_to(root).as_posix())
+            try:
+                with zipfile.ZipFile(tmpzip, "w", zipfile.ZIP_DEFLATED) as zf:
+                    for f in sorted(root.rglob("*")):
+                        if f.is_file():
+                            zf.write(f, f.relative_to(root).as_posix())
+            except OSError as exc:
+                if exc.errno in ROOM_ERRNOS:
+                    raise no_room(exc.errno, path.parent, f"the FMU {path.name}") from None
+                raise
             check_generated_fmu(tmpzip, path)
     return path
+
+
+def _build_tree(root, model, layout, guid, ident, fmi_version, platforms, description, tdir):
+    """Write the FMU's files into the folder ``root``: sources, compiled binaries, model
+    description, ``resources/model.json``."""
+    src = root / "sources"
+    src.mkdir(parents=True)
+    plumbing = PLUMBING[fmi_version]
+    sources = [*CORE_SOURCES, plumbing, "model_data.c"]
+    for f in (*CORE_SOURCES, plumbing, *HEADERS):
+        shutil.copy(tdir / f, src / f)
+    for f in FMI_HEADERS[fmi_version]:
+        shutil.copy(tdir / "include" / f, src / f)
+    (src / "model_data.h").write_text(model_data_h(layout, guid, ident), encoding="ascii")
+    (src / "model_data.c").write_text(model_data_c(layout, guid, ident), encoding="ascii")
+    for plat in platforms:
+        p = PLATFORMS[plat]
+        bdir = p.fmi2_dir if fmi_version == 2 else p.fmi3_dir
+        compile_binary(src, sources, root / "binaries" / bdir / f"{ident}{p.suffix}", plat,
+                       layout.uses_libm)
+    if fmi_version == 2:
+        xml = model_description_fmi2(layout, guid, ident, description, source_files=sources)
+    else:
+        xml = model_description_fmi3(layout, guid, ident, description)
+        (src / "buildDescription.xml").write_text(build_description_fmi3(ident, sources, layout.uses_libm),
+                                                  encoding="utf-8")
+    (root / "modelDescription.xml").write_text(xml, encoding="utf-8")
+    res = root / "resources"
+    res.mkdir()
+    # the bytes DriveModel.save writes, written plainly: a temporary folder needs no atomic
+    # replace, and a failed write keeps its errno (a full disk is said as such)
+    (res / "model.json").write_bytes(json.dumps(model.to_dict(), indent=1).encode("utf-8", "backslashreplace"))
 
 
 def check_generated_fmu(fmu_file, target):

@@ -43,6 +43,7 @@ import numpy as np
 from ..errors import InputError
 from ..model import DriveModel, jsonable, load_model
 from ..trace import Trace
+from .archive import check_fmu_archive, extract_fmu, read_member
 
 
 @dataclass
@@ -147,14 +148,15 @@ class FmuRunner:
     """Drive an extracted FMU through fmpy, one sample at a time (FMI 2.0 or 3.0)."""
 
     def __init__(self, fmu_path, instance_name="fdid", logger=None):
-        from fmpy import extract, read_model_description
+        from fmpy import read_model_description
         self.fmu_path = str(fmu_path)
+        check_fmu_archive(self.fmu_path)        # before fmpy inflates or unpacks anything
         self.md = read_model_description(self.fmu_path)
         self.version = self.md.fmiVersion
         if self.md.coSimulation is None:
             raise InputError("the FMU has no Co-Simulation interface", source=self.fmu_path)
         self._dir = tempfile.mkdtemp(prefix="fdid_run_")
-        extract(self.fmu_path, self._dir)
+        extract_fmu(self.fmu_path, self._dir)
         self.vars = {v.name: v for v in self.md.modelVariables}
         ident = self.md.coSimulation.modelIdentifier
         kw = dict(unzipDirectory=self._dir, modelIdentifier=ident, instanceName=instance_name)
@@ -282,10 +284,7 @@ def run_fmu(fmu_path, commands, Ts, start_velocity=None, externals=None, paramet
 # --------------------------------------------------------------------------- validation
 def _model_from_fmu(fmu_path):
     try:
-        with zipfile.ZipFile(fmu_path) as zf:
-            d = json.loads(zf.read("resources/model.json"))
-    except zipfile.BadZipFile:
-        raise InputError("is not an FMU (not a zip archive)", source=str(fmu_path)) from None
+        d = json.loads(read_member(fmu_path, "resources/model.json"))
     except KeyError:
         raise InputError("the FMU carries no resources/model.json; pass the model (--model)",
                          source=str(fmu_path)) from None
@@ -459,6 +458,7 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     from .layout import build_layout
     from ..io.common import check_file
     fmu_path = check_file(fmu_path, what="FMU file")    # a directory is not "not found"
+    check_fmu_archive(fmu_path)     # member paths and inflated sizes, before anything unpacks it
     if isinstance(tolerance_mm, bool) or not isinstance(tolerance_mm, (int, float, np.floating, np.integer)) \
             or not (np.isfinite(tolerance_mm) and tolerance_mm > 0):
         # NaN and <= 0 failed every FMU with a meaningless message, inf passed any FMU

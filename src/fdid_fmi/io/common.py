@@ -4,6 +4,7 @@ from __future__ import annotations
 import codecs
 import hashlib
 import re
+import stat
 from pathlib import Path
 
 from ..errors import InputError
@@ -17,10 +18,21 @@ def check_file(path, what="file") -> Path:
     if not p.exists():
         raise InputError(f"{what} not found", source=str(p))
     if not p.is_file():
-        raise InputError("is not a regular file (a directory?)", source=str(p))
+        raise InputError(f"is {_file_kind(p.stat().st_mode)}, not a regular file", source=str(p))
     if p.stat().st_size == 0:
         raise InputError(f"{what} is empty (0 bytes)", source=str(p))
     return p
+
+
+def _file_kind(mode):
+    """What a file that is not a regular file is, from its ``st_mode`` (a FIFO or a device would be
+    read without end or block, a directory cannot be read at all)."""
+    for test, kind in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return kind
+    return "a special file"
 
 
 def text_lines(text):

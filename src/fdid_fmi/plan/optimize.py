@@ -279,9 +279,9 @@ def optimize_feeds(program, limits, Ts, tol_mm, model=None, fmu=None, qs=None, m
         raise InputError("give a model or an FMU", column="--model/--fmu")
     if fmu is not None and Path(fmu).is_file():
         # unpack once: every twin run then starts from the extracted folder
-        import fmpy
+        from ..fmu.archive import extract_fmu
         with tempfile.TemporaryDirectory(prefix="fdid_plan_") as tmp:
-            fmpy.extract(str(fmu), tmp)
+            extract_fmu(fmu, tmp)              # member paths and sizes checked before unpacking
             plan = optimize_feeds(program, limits, Ts, tol_mm, model=model, fmu=tmp,
                                   qs=qs if qs is not None else quasi_static_gains(_fmu_model(fmu)),
                                   margin=margin, min_override=min_override, rel_tol=rel_tol,

@@ -198,6 +198,8 @@ def run_model(model, interp):
 def fmu_axes(fmu_path):
     """Axes of an fdid FMU (inputs named ``<axis>_x_cmd``) and its step size (s)."""
     from fmpy import read_model_description
+    from ..fmu.archive import check_fmu_archive
+    check_fmu_archive(fmu_path)         # member paths and sizes, before fmpy inflates or unpacks it
     try:
         md = read_model_description(str(fmu_path))
     except Exception as exc:  # noqa: BLE001 - fmpy raises many kinds
@@ -219,8 +221,10 @@ def model_from_fmu(fmu_path):
         if Path(fmu_path).is_dir():           # an extracted FMU
             d = json.loads((Path(fmu_path) / "resources" / "model.json").read_text())
         else:
-            with zipfile.ZipFile(fmu_path) as zf:
-                d = json.loads(zf.read("resources/model.json"))
+            from ..fmu.archive import read_member
+            d = json.loads(read_member(fmu_path, "resources/model.json"))
+    except InputError:                        # refused by read_member: says why itself
+        raise
     except (KeyError, OSError, zipfile.BadZipFile, ValueError) as exc:
         raise InputError(f"carries no readable resources/model.json ({exc})", source=str(fmu_path)) from None
     return DriveModel.from_dict(d, source=f"{fmu_path}:resources/model.json")
