@@ -30,13 +30,11 @@ Step k, given xi, the inputs (commands, externals) and the axis states of step k
 2. friction inputs d = L sat(v / v_tilde), where the axis velocity v is either a model
    ``velocity`` output or the backward difference (x[k] - x[k-1]) / Ts of the ``position``
    output. v depends on d through the feed-through D, so v = alpha + beta d is affine and
-   sat is piecewise linear: the step is solved exactly by checking the branches linear / +1 / -1
-   of each friction input. sat is monotone, so with friction that slows its axis (beta < 0)
-   the step has one solution, and d moves by at most |Delta alpha| / |beta| when the data move
-   alpha: the prediction is continuous in the commands, and an axis pulled from rest speeds up
-   from zero. (A stick set at v = 0 beside the band is not monotone: the step then has two
-   solutions near rest and rounding decides between them.) A one-sample lag instead
-   limit-cycles at rest when L*|beta|/v_tilde >> 1;
+   sat is piecewise linear: the step is solved exactly by checking the branches
+   stick (v = 0 held by |d| <= L, beta < 0) / linear / +1 / -1 for each friction input, in
+   that order; the first consistent one wins. A one-sample lag instead limit-cycles at rest
+   when L*|beta|/v_tilde >> 1, and without the stick branch an axis at rest creeps through
+   the viscous transition band;
 3. y = C xi + D u + G1 u_ref; xi <- A xi + B u.
 Sums run left to right along each matrix row, with plain IEEE products (no fused multiply-add).
 """

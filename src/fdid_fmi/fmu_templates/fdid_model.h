@@ -14,9 +14,9 @@
  *               h = x[-1] - b sign(v0); x[-1] = x[0] - v0 Ts; v[-1] = v0;
  *   step k      feature inputs from the previous step's velocity / position (the play feature
  *               from its operator state h, updated with each new position); friction inputs
- *               d = L sat(v / v_tilde) solved exactly (v = alpha + beta d is affine in d:
- *               branches linear / +1 / -1 per friction input; sat is monotone, so there is
- *               one consistent branch and d is Lipschitz in the data); with z = [xi; u],
+ *               d = L sat(v / v_tilde) solved exactly with stiction (v = alpha + beta d is
+ *               affine in d: branches stick (v = 0, |d| <= L) / linear / +1 / -1 per friction
+ *               input, in that order, the first consistent one wins); with z = [xi; u],
  *               y = [C D] z + G1 u_ref (the friction part of D u added after the solve) and
  *               xi <- [A B] z. Position-type outputs have no D from commands (causal).
  *   sums        each matrix-vector product left to right along the row, plain IEEE products
