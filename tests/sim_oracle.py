@@ -91,7 +91,7 @@ class _Plan:
                 self.vsrc.append((self.vel[a], False))
             else:
                 self.vsrc.append((self.pos[a], True))
-        self.branches = list(itertools.product((0, 1, -1), repeat=len(self.fric)))
+        self.branches = list(itertools.product((STICK, 0, 1, -1), repeat=len(self.fric)))
 
 
 def _sat(x):
@@ -123,16 +123,18 @@ def feature_value(params, v_prev, x_cmd, x_prev, h=None):
     raise InputError(f"unknown feature function '{f}'")
 
 
+STICK = 2   # branch code: v_i = 0 held by |d_i| <= L_i (fdid_core.c, solve_friction)
+
+
 def solve_friction(alpha, beta, level, vt, branches):
-    """Solve d_i = L_i sat((alpha_i + sum_j beta_ij d_j) / vt_i) exactly (one solution: sat is
-    monotone).
+    """Solve d_i = L_i sat((alpha_i + sum_j beta_ij d_j) / vt_i) exactly, with stiction.
 
     Parameters
     ----------
     alpha : (m,) velocity with the friction inputs at zero
     beta : (m, m) d velocity_i / d d_j
     level, vt : (m,) friction levels L and transition velocities v_tilde
-    branches : list of tuples over {0: linear, +1, -1}, tried in order
+    branches : list of tuples over {STICK, 0: linear, +1, -1}, tried in order
 
     Returns
     -------
@@ -143,6 +145,10 @@ def solve_friction(alpha, beta, level, vt, branches):
         L, v, a, b = float(level[0]), float(vt[0]), float(alpha[0]), float(beta[0][0])
         if L == 0.0:
             return np.zeros(1)
+        if b < 0.0:
+            d = -a / b
+            if abs(d) <= L:
+                return np.array([d])
         den = v - L * b
         if den > 0:
             d = L * a / den
@@ -159,7 +165,7 @@ def solve_friction(alpha, beta, level, vt, branches):
     vv = [float(x) for x in vt]
     for br in branches:
         d = [br[i] * lv[i] if br[i] in (1, -1) else 0.0 for i in range(m)]
-        un = [i for i in range(m) if br[i] == 0]
+        un = [i for i in range(m) if br[i] in (STICK, 0)]
         sl = [i for i in range(m) if br[i] in (1, -1)]
         if un:
             M, rhs = [], []
@@ -168,8 +174,12 @@ def solve_friction(alpha, beta, level, vt, branches):
                 for j in sl:
                     acc += be[q][j] * d[j]
                 g = lv[q] / vv[q]
-                M.append([(1.0 if q == c else 0.0) - g * be[q][c] for c in un])
-                rhs.append(g * (al[q] + acc))
+                if br[q] == STICK:
+                    M.append([be[q][c] for c in un])
+                    rhs.append(-(al[q] + acc))
+                else:
+                    M.append([(1.0 if q == c else 0.0) - g * be[q][c] for c in un])
+                    rhs.append(g * (al[q] + acc))
             sol = _lu_solve(M, rhs)
             if sol is None:
                 continue
@@ -177,6 +187,11 @@ def solve_friction(alpha, beta, level, vt, branches):
                 d[i] = sol[r]
         ok = True
         for i in range(m):
+            if br[i] == STICK:
+                ok = lv[i] > 0.0 and be[i][i] < 0.0 and abs(d[i]) <= lv[i]
+                if not ok:
+                    break
+                continue
             if lv[i] == 0.0:
                 continue
             acc = 0.0

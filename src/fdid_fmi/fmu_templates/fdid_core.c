@@ -204,17 +204,13 @@ static int lu_solve(double *Mx, double *rhs, int k) {
 }
 
 /* The friction inputs of one step, exactly: d_i = L_i sat(v_i / vt_i) with v = alpha + beta d
- * (alpha: velocity with the friction at zero; beta = dv/dd, from the feed-through D).
- *
- * sat is monotone and single-valued, so for beta_ii < vt_i / L_i (every physical drive:
- * friction slows its axis, beta_ii < 0) the step has exactly one solution, and d is Lipschitz
- * in alpha: |dd/dalpha| <= L / (vt + L |beta|) <= 1 / |beta|. A stick set at v = 0 (|d| <= L
- * beside the linear band) is not monotone: then the step has two solutions near rest, the
- * branch order picks one, the velocity jumps from 0 to about vt at breakaway and the free run
- * hinges on rounding. With several friction inputs the branches linear / +1 / -1 are checked
- * per input (the last input varies fastest); the first consistent one is the solution. */
-enum { BR_LINEAR = 0 };
-static const int branch_code[3] = {BR_LINEAR, 1, -1};
+ * (alpha: velocity with the friction at zero; beta = dv/dd, from the feed-through D). Branches
+ * per input, tried in this order (the last input varies fastest), the first consistent wins:
+ *   stick   v_i = 0 with |d_i| <= L_i and beta_ii < 0: the friction holds the axis at rest
+ *           (a sampled Coulomb model without this creeps through its viscous band);
+ *   linear  |v_i| <= vt_i, d_i = L_i v_i / vt_i;   +1 / -1   d_i = +-L_i (sliding). */
+enum { BR_STICK = 2, BR_LINEAR = 0 };
+static const int branch_code[4] = {BR_STICK, BR_LINEAR, 1, -1};
 
 static void solve_friction(int m, const double *alpha, const double *beta, const double *level,
                            const double *vt, double *d) {
@@ -223,6 +219,10 @@ static void solve_friction(int m, const double *alpha, const double *beta, const
     if (m == 1) {
         double L = level[0], v = vt[0], a = alpha[0], bb = beta[0], den;
         if (L == 0.0) { d[0] = 0.0; return; }
+        if (bb < 0.0) {
+            double x = -a / bb;
+            if (fdid_abs(x) <= L) { d[0] = x; return; }
+        }
         den = v - L * bb;
         if (den > 0) {
             double x = L * a / den;
@@ -233,21 +233,22 @@ static void solve_friction(int m, const double *alpha, const double *beta, const
         d[0] = L * fdid_sat(a / v);
         return;
     }
-    for (i = 0; i < m; i++) nb *= 3;
+    for (i = 0; i < m; i++) nb *= 4;
     for (b = 0; b < nb; b++) {
         int code = b, ok = 1, nu = 0, un[FDID_MAX_FRICTION], sl[FDID_MAX_FRICTION], nsl = 0;
         double z;
         for (i = m - 1; i >= 0; i--) {
-            br[i] = branch_code[code % 3];
-            code /= 3;
+            br[i] = branch_code[code % 4];
+            code /= 4;
         }
         for (i = 0; i < m; i++) {
             d[i] = 0.0;
-            if (br[i] == BR_LINEAR) un[nu++] = i;
+            if (br[i] == BR_STICK || br[i] == BR_LINEAR) un[nu++] = i;
             else { sl[nsl++] = i; d[i] = br[i] * level[i]; }
         }
         if (nu > 0) {
-            /* linear rows: d_r - g_r sum_c beta_rc d_c = g_r (alpha_r + sliding part) */
+            /* stick rows: sum_c beta_rc d_c = -(alpha_r + sliding part);
+             * linear rows: d_r - g_r sum_c beta_rc d_c = g_r (alpha_r + sliding part) */
             double Mx[FDID_MAX_FRICTION * FDID_MAX_FRICTION], rhs[FDID_MAX_FRICTION];
             int r, c;
             for (r = 0; r < nu; r++) {
@@ -256,15 +257,19 @@ static void solve_friction(int m, const double *alpha, const double *beta, const
                 for (c = 0; c < nsl; c++) s += beta[q * m + sl[c]] * d[sl[c]];
                 for (c = 0; c < nu; c++) {
                     double bqc = beta[q * m + un[c]];
-                    Mx[r * nu + c] = (r == c ? 1.0 : 0.0) - g * bqc;
+                    Mx[r * nu + c] = br[q] == BR_STICK ? bqc : (r == c ? 1.0 : 0.0) - g * bqc;
                 }
-                rhs[r] = g * (alpha[q] + s);
+                rhs[r] = br[q] == BR_STICK ? -(alpha[q] + s) : g * (alpha[q] + s);
             }
             if (!lu_solve(Mx, rhs, nu)) continue;
             for (r = 0; r < nu; r++) d[un[r]] = rhs[r];
         }
         for (i = 0; i < m && ok; i++) {
             double s = 0.0;
+            if (br[i] == BR_STICK) {
+                ok = level[i] > 0.0 && beta[i * m + i] < 0.0 && fdid_abs(d[i]) <= level[i];
+                continue;
+            }
             if (level[i] == 0.0) continue;
             for (j = 0; j < m; j++) s += beta[i * m + j] * d[j];
             z = (alpha[i] + s) / vt[i];
