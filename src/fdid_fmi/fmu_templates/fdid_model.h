@@ -106,7 +106,7 @@ typedef struct {
     const double *axis_vtilde_floor;  /* per axis: least v_tilde per unit friction level, mm/s
                                          (0: any v_tilde > 0; model.vtilde_floor_per_level) */
     int n_vars;
-    const FdidVar *vars;              /* value reference = position in this table */
+    const FdidVar *vars;              /* value reference = FDID_FIRST_VR + position in this table */
 } FdidModel;
 
 /* Dynamic state of one instance; every double lives in `buf` so that FMU states are one copy.
