@@ -62,7 +62,7 @@ case "$cmd" in
         # (src/fdid_fmi/workers.py)
         export OPENBLAS_NUM_THREADS=${OPENBLAS_NUM_THREADS:-1} OMP_NUM_THREADS=${OMP_NUM_THREADS:-1} \
             MKL_NUM_THREADS=${MKL_NUM_THREADS:-1}
-        "$VENV/bin/python" -m pytest -n 2 --dist worksteal -q "$@"
+        "$VENV/bin/python" -m pytest -n 2 --dist worksteal -q --durations=15 "$@"
         ;;
     bench)
         setup test
