@@ -362,3 +362,44 @@ def test_utf8_bom_on_latin1_text(tmp_path):
     p.write_bytes(b"\xef\xbb\xbf# Achse X, Aufl\xf6sung 0.1 \xb5m\n" + ("t_s,x_cmd_mm,x_mm\n" + _rows()).encode())
     tr = read_trace(p)
     assert tr.n == 200 and tr.roles["x"] == {"cmd": "x_cmd_mm", "act": "x_mm"}
+
+
+def _random_numbers_file(path, n=3000, newline="\n", seed=0):
+    rng = np.random.default_rng(seed)
+    vals = rng.normal(0, 1, (n, 2)) * 10.0 ** rng.integers(-20, 20, (n, 2))
+    cells = [[repr(float(a)), "%.9g" % b] for a, b in vals]
+    cells[5] = [" 1.5", "-.5 "]                      # spaces around a number, a bare fraction
+    cells[6] = ["-0.0", "5e-324"]                    # signed zero, the smallest subnormal
+    path.write_bytes(("t_s,x_cmd_mm,x_mm" + newline + newline.join(
+        f"{k * 0.001!r},{a},{b}" for k, (a, b) in enumerate(cells)) + newline).encode())
+    return vals
+
+
+@pytest.mark.parametrize("newline", ["\n", "\r\n", "\r"])
+def test_long_bodies_read_to_the_same_doubles_as_line_by_line(tmp_path, newline, monkeypatch):
+    """A plain numeric body is parsed in blocks by numpy; it must give the doubles the line-by-line
+    reader gives (float() of each cell), bit for bit, whatever the line ends."""
+    import fdid_fmi.io.text as T
+    p = tmp_path / "plain.csv"
+    _random_numbers_file(p, newline=newline)
+    monkeypatch.setattr(T, "_BODY_CHUNK", 4096)      # many blocks, cut inside lines
+    fast = read_text(p)
+    monkeypatch.setattr(T, "_parse_body", lambda *a, **k: None)
+    slow = read_text(p)
+    for name in ("x_cmd_mm", "x_mm"):
+        a, b = fast.channels[name].data, slow.channels[name].data
+        assert a.tobytes() == b.tobytes()
+    assert fast.t.tobytes() == slow.t.tobytes()
+
+
+def test_a_blank_line_inside_a_long_body_keeps_the_row_numbers(tmp_path):
+    """The block parser declines a body with a blank line (its rows would shift); the line reader
+    then names the file row of a bad value."""
+    lines = ["t_s,x_cmd_mm,x_mm"] + [f"{k * 0.001!r},{k * 0.01!r},{k * 0.01!r}" for k in range(500)]
+    lines.insert(200, "")
+    lines[400] = f"{398 * 0.001!r},nan,1"             # file row 401
+    p = tmp_path / "blank.csv"
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError) as exc:
+        read_text(p)
+    assert exc.value.row == 401 and exc.value.column == "x_cmd_mm"

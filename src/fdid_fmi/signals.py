@@ -67,13 +67,19 @@ def filtered_derivatives(x, Ts, cutoff_hz, order=2, n=3):
     -------
     list of arrays [x', x'', ...] (units of x per s^k)
     """
-    out = []
+    return list(iter_filtered_derivatives(x, Ts, cutoff_hz, order, n))
+
+
+def iter_filtered_derivatives(x, Ts, cutoff_hz, order=2, n=3):
+    """:func:`filtered_derivatives` one at a time: a long trace holds one derivative (and the
+    filter's work arrays) at once."""
     y = np.asarray(x, dtype=float)
     for _ in range(n):
-        y = np.gradient(y, Ts)
-        y = butter_filtfilt(y, Ts, cutoff_hz, order)
-        out.append(y)
-    return out
+        g = np.gradient(y, Ts)
+        y = None                 # the previous derivative is the caller's to keep
+        y = butter_filtfilt(g, Ts, cutoff_hz, order)
+        del g
+        yield y
 
 
 def measured_velocity(x, Ts, ma_order=5, method="central"):

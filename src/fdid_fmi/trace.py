@@ -52,6 +52,20 @@ class Channel:
         arr.setflags(write=False)
         object.__setattr__(self, "data", arr)
 
+    @classmethod
+    def adopt(cls, name, unit, data):
+        """A channel over ``data`` itself, made read-only, without the private copy: for a
+        float64 array its caller built and hands over (a reader's parsed column, which on a
+        long trace is as large as the file). Anything else gets the copy."""
+        if not (isinstance(data, np.ndarray) and data.dtype == np.float64 and data.base is None
+                and data.ndim == 1 and data.flags.c_contiguous):
+            return cls(name, unit, data)
+        ch = cls.__new__(cls)
+        data.setflags(write=False)
+        for key, value in (("name", name), ("unit", unit), ("data", data)):
+            object.__setattr__(ch, key, value)
+        return ch
+
 
 @dataclass
 class Trace:
@@ -287,7 +301,12 @@ def off_grid(t, tol=0.5):
     samples at the wrong times."""
     t = np.asarray(t, float)
     ts = (t[-1] - t[0]) / (t.size - 1)
-    dev = np.abs(t - t[0] - np.arange(t.size) * ts)
+    dev = t - t[0]
+    grid = np.arange(t.size, dtype=float)
+    grid *= ts
+    dev -= grid
+    del grid
+    np.abs(dev, out=dev)
     k = int(np.argmax(dev))
     return k if dev[k] > tol * ts else None
 

@@ -39,16 +39,22 @@ def normalise_unit(unit, source=None, column=None):
     return u
 
 
-def to_canonical(values, unit, source=None, column=None):
+def to_canonical(values, unit, source=None, column=None, in_place=False):
     """Convert ``values`` (array) given in ``unit`` to the canonical unit of its quantity.
+
+    ``in_place``: convert the caller's own float64 array itself (a reader's column of a long
+    trace), with the same doubles.
 
     Returns
     -------
-    values : ndarray (a new array; the input is never modified)
+    values : ndarray (a new array, the input unchanged; with ``in_place`` the input itself)
     unit : str, the canonical unit
     """
     u = normalise_unit(unit, source, column)
     quantity, factor = UNITS[u]
+    if in_place:
+        values *= factor
+        return values, CANONICAL[quantity]
     return values * factor, CANONICAL[quantity]
 
 

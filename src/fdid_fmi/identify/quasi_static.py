@@ -14,7 +14,7 @@ import numpy as np
 from ..errors import InputError, finite_number
 from ..metrics import rms
 from ..model import QuasiStaticModel
-from ..signals import filtered_derivatives
+from ..signals import iter_filtered_derivatives
 from .ranges import training_ranges
 
 
@@ -51,28 +51,62 @@ def identify_quasi_static(traces, axes=None, cutoff_hz=None, order=2, terms=3):
     cutoff_hz = default_cutoff(Ts) if cutoff_hz is None else finite_number(cutoff_hz, "cutoff_hz", positive=True)
     gains, metrics = {}, {}
     for ax in axes:
-        Phi, Y = [], []
         if int(terms) != terms or terms < 3:
             raise InputError(f"terms must be an integer >= 3, got {terms!r}", column="terms")
-        for tr in traces:
-            Phi.append(np.column_stack(filtered_derivatives(tr.cmd(ax), Ts, cutoff_hz, order, int(terms))))
-            Y.append(tr.error(ax))
-        Phi, Y = np.vstack(Phi), np.concatenate(Y)
-        if np.ptp(np.concatenate([tr.cmd(ax) for tr in traces])) <= 0:
+        if max(tr.cmd(ax).max() for tr in traces) - min(tr.cmd(ax).min() for tr in traces) <= 0:
             raise InputError(f"axis '{ax}' does not move in the data range: nothing to identify",
                              source=traces[0].source, column=f"{ax}.cmd")
+        # one regressor matrix, filled one derivative at a time (a long trace: no copies of it)
+        Phi = np.empty((sum(tr.n for tr in traces), int(terms)))
+        r0 = 0
+        for tr in traces:
+            for k, d in enumerate(iter_filtered_derivatives(tr.cmd(ax), Ts, cutoff_hz, order, int(terms))):
+                Phi[r0:r0 + tr.n, k] = d
+                d = None         # noqa: F841  (the generator may free it while making the next)
+            r0 += tr.n
+        Y = traces[0].error(ax) if len(traces) == 1 else np.concatenate([tr.error(ax) for tr in traces])
         check_excitation(Phi, cutoff_hz, ax, traces[0].source)
-        scale = np.max(np.abs(Phi), axis=0)
+        scale = max_abs_columns(Phi)
         scale[scale == 0] = 1.0
-        theta = np.linalg.lstsq(Phi / scale, Y, rcond=None)[0] / scale
+        Phi /= scale                                       # scaled columns, in place
+        theta_s = least_squares_by_blocks(Phi, Y)
+        theta = theta_s / scale
         gains[ax] = {"K_vel": float(theta[0]), "K_acc": float(theta[1]), "K_jerk": float(theta[2])}
         if terms > 3:
             gains[ax]["K_higher"] = [float(v) for v in theta[3:]]
-        metrics[ax] = {"fit_rms_um": rms(Y - Phi @ theta) * 1e3, "error_rms_um": rms(Y) * 1e3}
+        metrics[ax] = {"fit_rms_um": rms(Y - Phi @ theta_s) * 1e3, "error_rms_um": rms(Y) * 1e3}
+        del Phi, Y
     return QuasiStaticModel(Ts=Ts, gains=gains, cutoff_hz=float(cutoff_hz), order=int(order),
                             metrics=metrics,
                             provenance={"data": [{"source": tr.source, "sha256": tr.meta.get("sha256")
                                                   or tr.fingerprint()} for tr in traces]})
+
+
+def max_abs_columns(A):
+    """max |A[:, j]| per column without an |A| array (NaN propagates, as np.abs's max would)."""
+    return np.maximum(A.max(axis=0), -A.min(axis=0))
+
+
+LS_BLOCK_ROWS = 1 << 18      # rows per block of least_squares_by_blocks
+
+
+def least_squares_by_blocks(A, y, block=LS_BLOCK_ROWS):
+    """argmin |A x - y| for a tall ``A`` (N x k), reading it in blocks of rows.
+
+    The triangular factor R of [A y] is built block by block (Householder QR of R stacked on
+    the next block), so the work arrays hold one block, not copies of A as ``lstsq`` makes (a
+    10^7-sample trace: 240 MB each); then R_11 x = r_12. A is full rank here
+    (``check_excitation``); where R is numerically singular, ``np.linalg.lstsq`` decides."""
+    N, k = A.shape
+    R = np.zeros((0, k + 1))
+    for r0 in range(0, N, block):
+        blk = np.column_stack([A[r0:r0 + block], y[r0:r0 + block]])
+        R = np.linalg.qr(np.vstack([R, blk]), mode="r")
+    R11 = R[:k, :k]
+    d = np.abs(np.diag(R11))
+    if R.shape[0] < k or d.min() <= 1e-12 * d.max():
+        return np.linalg.lstsq(A, y, rcond=None)[0]
+    return np.linalg.solve(R11, R[:k, k])
 
 
 MIN_SAMPLES_PER_GAIN = 20     # as the pole search: 20 samples per estimated parameter
@@ -95,7 +129,7 @@ def check_excitation(Phi, cutoff_hz, axis, source=None, gains=GAIN_NAMES):
     if N < need:
         raise InputError(f"{N} samples are too few for {terms} gains (need at least {need})",
                          source=source, column="samples")
-    level = np.max(np.abs(Phi), axis=0) / (2 * np.pi * cutoff_hz) ** np.arange(terms)
+    level = max_abs_columns(Phi) / (2 * np.pi * cutoff_hz) ** np.arange(terms)
     for k in range(1, terms):
         if not level[k] > UNEXCITED * level[0]:
             what = DERIVATIVE_NAMES[k] if k < len(DERIVATIVE_NAMES) else f"derivative of order {k + 1}"
@@ -116,15 +150,20 @@ def predict_quasi_static(model, cmds, t):
             raise InputError(f"no command for axis '{ax}'", column=ax)
         g = model.gains[ax]
         k = [g["K_vel"], g["K_acc"], g["K_jerk"]] + list(g.get("K_higher", []))
-        ders = filtered_derivatives(cmds[ax], Ts, model.cutoff_hz, model.order, len(k))
-        e = sum(kk * d for kk, d in zip(k, ders))
+        e = 0
+        for kk, d in zip(k, iter_filtered_derivatives(cmds[ax], Ts, model.cutoff_hz, model.order, len(k))):
+            e = e + kk * d          # the order of sum(): one derivative held at a time
+            d = None                # noqa: F841
         x = np.asarray(cmds[ax], float) - e
-        vel = np.gradient(x, Ts)
-        axes[ax] = {"position": x, "error": e, "velocity": vel}
         cols += [x, e]
+    # the outputs once, in y; the per-axis arrays are its columns (a long trace: no second copy)
+    y = np.column_stack(cols)
+    del cols
+    for i, ax in enumerate(model.axes):
+        x = y[:, 2 * i]
+        axes[ax] = {"position": x, "error": y[:, 2 * i + 1], "velocity": np.gradient(x, Ts)}
     names = [n for ax in model.axes for n in (f"{ax}_pos", f"{ax}_err")]
-    return SimResult(t=np.asarray(t), y=np.column_stack(cols), u=np.zeros((len(t), 0)), axes=axes,
-                     output_names=names)
+    return SimResult(t=np.asarray(t), y=y, u=np.zeros((len(t), 0)), axes=axes, output_names=names)
 
 
 def feed_limits(model, axis, e_max_mm, v_max=None, a_max=None, j_max=None):

@@ -179,7 +179,7 @@ def _is_time_name(base):
 
 
 def assemble(columns, *, source, mapping=None, units=None, file_units=None, rows=None,
-             meta=None, jitter_tol=0.05):
+             meta=None, jitter_tol=0.05, owned=False):
     """Turn named columns into a ``Trace``.
 
     Parameters
@@ -201,6 +201,9 @@ def assemble(columns, *, source, mapping=None, units=None, file_units=None, rows
         Extra facts for ``trace.meta``.
     jitter_tol : float
         Largest relative deviation of a time step from the median step.
+    owned : bool
+        The columns are the caller's own fresh float64 arrays, handed over: the channels use
+        them without a copy (a reader's parsed file).
 
     Returns
     -------
@@ -362,7 +365,7 @@ def assemble(columns, *, source, mapping=None, units=None, file_units=None, rows
                              source=source, column=col, row=row_of(i))
         return arr
 
-    t = U.to_canonical(values(tcol), tunit, source, tcol)[0]
+    t = U.to_canonical(values(tcol), tunit, source, tcol, in_place=owned)[0]
     check_time(t, source=source, column=tcol, row_of=row_of, jitter_tol=jitter_tol)
     notes = []
     if stated[tcol] is None:
@@ -374,8 +377,8 @@ def assemble(columns, *, source, mapping=None, units=None, file_units=None, rows
     for col in names:
         if col == tcol:
             continue
-        data, cu = U.to_canonical(values(col), unit_of[col], source, col)
-        channels[col] = Channel(col, cu, data)
+        data, cu = U.to_canonical(values(col), unit_of[col], source, col, in_place=owned)
+        channels[col] = Channel.adopt(col, cu, data) if owned else Channel(col, cu, data)
 
     # ---- derived positions from the tracking error (thesis GUI files)
     derived = {}
@@ -507,12 +510,15 @@ def check_time(t, *, source, column, row_of=None, jitter_tol=0.05):
         raise InputError(f"time is not strictly increasing ({float(t[k])!r} s then {float(t[k + 1])!r} s)",
                          source=source, column=column, row=row_of(k + 1))
     ts = float(np.median(dt))
-    jit = np.abs(dt - ts) > jitter_tol * ts
+    dev = np.abs(dt - ts)
+    jit = dev > jitter_tol * ts
+    del dev
     if jit.any():
         k = int(np.argmax(jit))
         raise InputError(f"sample time is not steady: step {dt[k]:.6g} s against the median {ts:.6g} s "
                          f"(tolerance {jitter_tol:.0%}); resample the trace first",
                          source=source, column=column, row=row_of(k + 1))
+    del dt, jit
     k = off_grid(t)
     if k is not None:
         raise InputError(f"the time stamps drift from a uniform grid (more than half a sample at "

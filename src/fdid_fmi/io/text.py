@@ -91,8 +91,8 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
         raise InputError(f"unknown layout '{layout}'; expected one of {', '.join(LAYOUTS)}",
                          source=src, column="layout")
     text = read_text_file(path)
-    entries = [(i + 1, ln) for i, ln in enumerate(text_lines(text))
-               if ln.strip() and not ln.lstrip().startswith(("#", "%"))]
+    # the first lines decide the layout; the data body is parsed in one pass (_parse_body)
+    entries, body = _head_entries(text)
     if not entries:
         raise InputError("file is empty (no header and no data rows)", source=src)
 
@@ -173,10 +173,107 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
                              f"(e.g. t_s,x_cmd_mm,x_mm), a mapping such as t=col1 x.cmd=col2 "
                              f"x.act=col3, or a layout ({', '.join(GUI_COLUMNS)})", source=src)
 
-    data_entries = entries[(1 + units_row):] if has_header else entries
-    if not data_entries:
+    first_data = (1 + units_row) if has_header else 0
+    if len(entries) <= first_data:
         raise InputError("the file has a header line but no data rows", source=src,
                          row=entries[0][0])
+    parsed = None if decimal_comma else _parse_body(text, body[first_data], entries[first_data][0],
+                                                    len(names), delim)
+    if parsed is None:
+        data_entries = list(_all_entries(text))[first_data:]
+        columns, rows = _parse_lines(data_entries, names, delim, trailing, has_header, decimal_comma, src)
+    else:
+        cols, rows = parsed
+        columns = dict(zip(names, cols))
+    del text, parsed            # a long file's text is as large as its numbers: free it first
+
+    meta = {"file": src, "sha256": file_sha256(path), "layout": layout,
+            "delimiter": DELIMITERS[delim], "header": has_header}
+    if decimal_comma:
+        meta["decimal_comma"] = True
+    if layout in GUI_COLUMNS and units:
+        for k in units:
+            if k not in names:
+                raise InputError(f"a unit is given for column '{k}'; the {layout} layout names its "
+                                 f"columns {names}", source=src, column=k)
+    return assemble(columns, source=src, mapping=mapping, units=units, file_units=file_units,
+                    rows=rows, meta=meta, jitter_tol=jitter_tol, owned=True)
+
+
+# ----------------------------------------------------------------------------- helpers
+HEAD_LINES = 210          # entries the layout detection reads (header, units row, 200 data rows)
+_LINE = re.compile(r"[^\r\n]*(?:\r\n|\r|\n|$)")
+_BODY_CHUNK = 1 << 22     # characters parsed at a time: bounded temporaries for long traces
+_NOT_PLAIN = re.compile(r"[^0-9eE+\-.,;\t \r\nnaifNAIF]")
+
+
+def _is_entry(line):
+    return bool(line.strip()) and not line.lstrip().startswith(("#", "%"))
+
+
+def _head_entries(text):
+    """The first HEAD_LINES entries (1-based line number, line) of ``text`` (blank and comment
+    lines skipped), and where each starts: ``(entries, offsets)``, read lazily so that a long
+    file builds no object per line here."""
+    entries, offsets = [], []
+    for i, m in enumerate(_LINE.finditer(text)):
+        if m.start() == len(text):
+            break
+        line = m.group().rstrip("\r\n")
+        if _is_entry(line):
+            entries.append((i + 1, line))
+            offsets.append(m.start())
+            if len(entries) >= HEAD_LINES:
+                break
+    return entries, offsets
+
+
+def _all_entries(text):
+    return ((i + 1, ln) for i, ln in enumerate(text_lines(text)) if _is_entry(ln))
+
+
+def _parse_body(text, start, lineno, width, delim):
+    """The data rows from character ``start`` (line ``lineno``) on as ``width`` float columns
+    with their line numbers, parsed by numpy in chunks (no Python object per cell, bounded
+    temporaries); None when the body is not plain numbers and delimiters (quotes, comments or
+    blank lines inside, ragged rows, empty cells, a trailing delimiter), which the line-by-line
+    reader then reads and, where wrong, names by row and column. Both read decimal text to the
+    nearest double."""
+    end_text = len(text)
+    while end_text > start and text[end_text - 1].isspace():    # trailing blank lines
+        end_text -= 1
+    if _NOT_PLAIN.search(text, start, end_text) is not None:
+        return None
+    cr = "\r" in text
+    sep = "\r" if cr and "\n" not in text else "\n"
+    n_est = text.count(sep, start, end_text) + 1
+    cols = [np.empty(n_est) for _ in range(width)]
+    n, pos = 0, start
+    while pos < end_text:
+        cut = min(pos + _BODY_CHUNK, end_text)
+        nl = text.rfind(sep, pos, cut + 1) if cut < end_text else -1
+        stop = end_text if nl < pos else nl + 1
+        chunk = text[pos:stop]
+        lines = (chunk.replace("\r\n", "\n").replace("\r", "\n") if cr else chunk).split("\n")
+        if lines[-1] == "":
+            lines.pop()
+        try:
+            blk = np.loadtxt(lines, delimiter=delim, dtype=float, ndmin=2, comments=None)
+        except ValueError:
+            return None
+        if blk.shape[1] != width or blk.shape[0] != len(lines) or n + len(lines) > n_est:
+            return None     # a blank line inside: the rows' line numbers would shift
+        for j in range(width):
+            cols[j][n:n + len(lines)] = blk[:, j]
+        n += len(lines)
+        pos = stop
+    if n != n_est:
+        return None
+    return cols, lineno + np.arange(n, dtype=np.int64)
+
+
+def _parse_lines(data_entries, names, delim, trailing, has_header, decimal_comma, src):
+    """Columns and row numbers of the data rows, line by line (any file the body parser declines)."""
     cells = []
     rows = np.empty(len(data_entries), dtype=np.int64)
     width = len(names)
@@ -190,25 +287,12 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
                              source=src, row=lineno)
         cells.append(parts)
         rows[k] = lineno
-
     columns = {}
     for j, name in enumerate(names):
         columns[name] = _to_floats([r[j] for r in cells], decimal_comma, src, name, rows)
-
-    meta = {"file": src, "sha256": file_sha256(path), "layout": layout,
-            "delimiter": DELIMITERS[delim], "header": has_header}
-    if decimal_comma:
-        meta["decimal_comma"] = True
-    if layout in GUI_COLUMNS and units:
-        for k in units:
-            if k not in names:
-                raise InputError(f"a unit is given for column '{k}'; the {layout} layout names its "
-                                 f"columns {names}", source=src, column=k)
-    return assemble(columns, source=src, mapping=mapping, units=units, file_units=file_units,
-                    rows=rows, meta=meta, jitter_tol=jitter_tol)
+    return columns, rows
 
 
-# ----------------------------------------------------------------------------- helpers
 def _list(axes):
     return [axes] if isinstance(axes, str) else [str(a) for a in axes]
 
