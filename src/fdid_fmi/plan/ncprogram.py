@@ -325,7 +325,7 @@ def parse_program(text, source="<string>", start=(0.0, 0.0, 0.0)):
         raise InputError(f"start must be three finite numbers (x, y, z) in mm, got {start!r}", column="start")
     st = {"motion": None, "plane": 17, "units": "mm", "distance": 90, "arc distance": 91.1,
           "feed mode": 94, "feed": None, "f_word": None, "wcs": 1, "offsets": {}, "moved": set(),
-          "switches": set(), "exact": None, "ref": {28: None, 30: None}}
+          "switches": set(), "exact": None, "ref": {28: None, 30: None}, "ref_note": {}}
     blocks, ignored, notes, seen = [], [], [], {}
     ended = None
     percent = []                             # rows of the '%' lines read: opening, closing
@@ -660,10 +660,17 @@ def _reference_return(which, txt, st, vals, pos, scale, source, row, raw, number
                             f_word=st["f_word"], exact_stop=True))
         p = mid
     ref = st["ref"][which]
-    if ref is None:
-        notes.append((row, f"{txt}: the reference position is not given in the program ({txt.rstrip('0123456789.')}"
-                           f"{which}.1 stores it): the move to it is not planned; the next block starts "
-                           f"from {'the intermediate point' if named else 'where the tool is'}"))
+    if ref is None:         # noted once per code, with every row where it stands
+        k, rows = st["ref_note"].setdefault(which, (len(notes), []))
+        rows.append(row)
+        also = f" (also row{'s' if len(rows) > 2 else ''} {', '.join(map(str, rows[1:]))})" if len(rows) > 1 else ""
+        text = (f"G{which}{also}: the reference position is not given in the program (G{which}.1 stores it): "
+                f"the move to it is not planned; the next block starts from the intermediate point (the axis "
+                f"words), or where the tool is")
+        if len(rows) == 1:
+            notes.append((row, text))
+        else:
+            notes[k] = (rows[0], text)
         return blocks
     end = p.copy()
     for a in (named or [0, 1, 2]):
