@@ -27,12 +27,14 @@ def recorded_limits(traces, axes, cutoff_hz=None, order=2):
     (|v| or |a| above 1 % of its peak), all traces together. Why a percentile and not the
     maximum: an interpolator holds its velocity and acceleration limits, and its jerk limit, for
     many samples (plateaus of the S-curve), so the percentile lies within a few percent of them
-    (a virtual drive's S-curve moves at 2000 mm/s^2 and 1e5 mm/s^3, 0.6 ms: 2035 mm/s^2 and
-    1.045e5 mm/s^3; the maximum 2061 and 1.065e5, the filter's overshoot), while one disturbed
-    setpoint (a restart, a step in the record) reaches only the top samples: one setpoint 0.5 mm
-    off moved the maximum jerk to 1.82e5 mm/s^3 (+71 %) and this percentile by 0.8 %. Restricting
-    to moving samples keeps a trace that rests most of the time from pulling the percentile into
-    its rests. These are limits the machine ran, lower bounds of what it can.
+    (S-curve moves at 2000 mm/s^2 and 1e5 mm/s^3 sampled at 0.6 ms: 2047 mm/s^2 and 1.047e5
+    mm/s^3; the maximum 2061 and 1.065e5, the filter's overshoot), while a disturbance of a few
+    samples reaches only the top ones: one setpoint 0.5 mm off where a move starts raised the
+    maximum jerk to 1.89e5 mm/s^3 (+77 %) and this percentile by 1.5 %. A step in the record (a
+    jump of the command held, a restart) lasts longer than 0.5 % of the moving samples and raises
+    both (0.5 mm: jerk x8 the maximum, x4 the percentile): cut such a record out of the training
+    range. Restricting to moving samples keeps a trace that rests most of the time from pulling
+    the percentile into its rests. These are limits the machine ran, lower bounds of what it can.
 
     Parameters
     ----------
