@@ -1,8 +1,12 @@
 """``fdid plan``: from an NC program to predicted tracking and contour errors, and feeds that
 keep them in tolerance.
 
-    fdid plan part.nc --model model.json --limits 100,2000,1e5 --tol 0.02 --optimize \\
+    fdid plan part.nc --model model.json --tol 0.02 --optimize \\
         --report plan.html --json plan.json -o part_opt.nc
+
+The axis limits are those the model recorded from its identification traces, unless
+``--limits-from TRACE`` or ``--limits`` give others; an axis the twin does not model follows
+its command (docs/plan-words.md: the words read and where the limits come from).
 
 The program is interpolated at the model's Ts (exact stop at every block end, jerk-limited
 S-curves within the axis limits; see :mod:`fdid_fmi.plan.interpolate`), or the controller's own
@@ -27,7 +31,8 @@ def register(sub):
     tw.add_argument("--model", help="identified model JSON (DriveModel)")
     tw.add_argument("--fmu", help="exported drive FMU (run through fmpy.simulate_fmu)")
     p.add_argument("--limits", action="append", default=[], metavar="[AXIS=]V,A,J",
-                   help="axis limits: velocity [mm/s], acceleration [mm/s^2], jerk [mm/s^3]; without AXIS= for all axes")
+                   help="axis limits: velocity [mm/s], acceleration [mm/s^2], jerk [mm/s^3]; without AXIS= for all axes "
+                        "(default: those the model recorded from its identification traces)")
     p.add_argument("--limits-from", default=None, metavar="TRACE",
                    help="estimate the limits from a recorded trace of the same machine")
     p.add_argument("--commands", default=None, metavar="TRACE",
