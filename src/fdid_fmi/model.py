@@ -42,7 +42,10 @@ import numpy as np
 from .errors import InputError, finite_number
 
 FORMAT = "fdid-fmi-model"
-FORMAT_VERSION = 2          # 2: causal models (no same-sample response to commands)
+FORMAT_VERSION = 3          # 2: causal models (no same-sample response to commands);
+                            # 3: ``limits``, the feed, acceleration and jerk per axis seen in the
+                            #    identification traces (older files load with none)
+LIMIT_KEYS = ("v_mm_s", "a_mm_s2", "j_mm_s3")
 INPUT_KINDS = ("command", "external", "friction", "feature")
 OUTPUT_KINDS = ("position", "error", "velocity", "tool_position", "acceleration", "other")
 FEATURE_FUNCTIONS = ("sat", "abs_sat", "stribeck", "sin_position", "cos_position", "play", "play_stribeck")
@@ -113,6 +116,11 @@ class DriveModel:
     metrics : dict               fit figures (training RMS etc.)
     effects : list[dict]         effects added by diagnosis (``kind`` + parameters)
     provenance : dict            data file hashes, ranges, software version
+    limits : dict                axis -> {``v_mm_s``, ``a_mm_s2``, ``j_mm_s3``, ``method``}: the
+                                 largest velocity, acceleration and jerk of the commanded positions
+                                 in the identification traces (:func:`fdid_fmi.identify.limits.
+                                 recorded_limits`); what ``fdid plan`` interpolates within by
+                                 default. Empty for models saved before format version 3.
     """
 
     Ts: float
@@ -128,6 +136,7 @@ class DriveModel:
     metrics: dict = field(default_factory=dict)
     effects: list = field(default_factory=list)
     provenance: dict = field(default_factory=dict)
+    limits: dict = field(default_factory=dict)
 
     def __post_init__(self):
         self.A = np.atleast_2d(_numbers(self.A, "A", "square matrix"))
@@ -214,6 +223,7 @@ class DriveModel:
         if len(set(p.name for p in self.inputs)) != m or len(set(p.name for p in self.outputs)) != p:
             raise InputError("input and output names must be unique", column="names")
         self._check_causal()
+        check_limits(self.limits, self.axes)
         rho = max(abs(np.linalg.eigvals(self.A))) if n else 0.0
         if rho >= 1.0:
             shown = f"{rho:.6f}" if rho < 1e6 else f"{rho:.3g}"     # not 150 digits
@@ -284,6 +294,7 @@ class DriveModel:
             "poles": [[p.real, p.imag] for p in self.poles],
             "identification": jsonable(self.identification), "metrics": jsonable(self.metrics),
             "effects": jsonable(self.effects), "provenance": jsonable(self.provenance),
+            "limits": jsonable(self.limits),
         }
 
     def save(self, path):
@@ -302,7 +313,8 @@ class DriveModel:
         if missing:
             raise InputError(f"model file lacks {missing}", source=source)
         for key, typ, what in (("identification", dict, "object"), ("metrics", dict, "object"),
-                               ("provenance", dict, "object"), ("effects", list, "array")):
+                               ("provenance", dict, "object"), ("effects", list, "array"),
+                               ("limits", dict, "object")):
             if key in d and not isinstance(d[key], typ):
                 raise InputError(f"must be a JSON {what}, got {_short(d[key])}", source=source, column=key)
         if any(not isinstance(e, dict) for e in d.get("effects", [])):
@@ -313,7 +325,7 @@ class DriveModel:
                        inputs=d["inputs"], outputs=d["outputs"], method=d.get("method", ""),
                        poles=d.get("poles", []), identification=d.get("identification", {}),
                        metrics=d.get("metrics", {}), effects=d.get("effects", []),
-                       provenance=d.get("provenance", {}))
+                       provenance=d.get("provenance", {}), limits=d.get("limits", {}))
         except InputError as exc:
             raise InputError(str(exc), source=source) from None
         except (TypeError, ValueError, OverflowError, AttributeError, KeyError, IndexError) as exc:
@@ -345,7 +357,8 @@ class DriveModel:
                    identification={"blocks": own([m.identification for m in models])},
                    metrics={"blocks": own([m.metrics for m in models])},
                    effects=own([e for m in models for e in m.effects]),
-                   provenance={"blocks": own([m.provenance for m in models])})
+                   provenance={"blocks": own([m.provenance for m in models])},
+                   limits=own({a: lim for m in models for a, lim in m.limits.items()}))
 
 
 @dataclass
@@ -476,6 +489,28 @@ def _json_hooks():
             d[k] = v
         return d
     return parse_int, pairs
+
+
+def check_limits(limits, axes):
+    """The ``limits`` of a model: axis (one of the model's) -> {v_mm_s, a_mm_s2, j_mm_s3: finite
+    numbers > 0, method: text}; InputError (column ``limits``) otherwise."""
+    if not isinstance(limits, dict):
+        raise InputError(f"must be a JSON object (axis -> limits), got {_short(limits)}", column="limits")
+    for ax, lim in limits.items():
+        if ax not in axes:
+            raise InputError(f"names axis {_short(ax)}, which the model does not have (axes {axes})",
+                             column="limits")
+        if not isinstance(lim, dict):
+            raise InputError(f"axis {ax}: expected an object with {', '.join(LIMIT_KEYS)}, got {_short(lim)}",
+                             column="limits")
+        for key in LIMIT_KEYS:
+            v = lim.get(key)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (np.isfinite(v) and v > 0):
+                raise InputError(f"axis {ax}: {key} must be a number > 0, got {_short(v)}", column="limits")
+        extra = [k for k in lim if k not in LIMIT_KEYS + ("method",)]
+        if extra or not isinstance(lim.get("method", ""), str):
+            raise InputError(f"axis {ax}: unknown entries {extra or ['method']}: expected "
+                             f"{', '.join(LIMIT_KEYS)} and a method text", column="limits")
 
 
 def _check_header(d, source, kind):

@@ -396,6 +396,9 @@ def summary(model, trace=None):
                              f"{', constrained LS' if b.get('constrained') else ''})")
         lines.append(f"states: {model.n_states}, inputs: {[p.name for p in model.inputs]}, "
                      f"outputs: {[p.name for p in model.outputs]}")
+        if model.limits:        # what fdid plan interpolates within by default
+            lines.append("limits of the commands (v [mm/s], a [mm/s^2], j [mm/s^3]): " + "; ".join(
+                f"{ax} {d['v_mm_s']:.4g}, {d['a_mm_s2']:.4g}, {d['j_mm_s3']:.4g}" for ax, d in model.limits.items()))
     else:
         for ax, g in model.gains.items():
             lines.append(f"{ax}: K_vel {g['K_vel']:.6g} s, K_acc {g['K_acc']:.6g} s^2, K_jerk {g['K_jerk']:.6g} s^3")

@@ -1,8 +1,12 @@
 """``fdid plan``: from an NC program to predicted tracking and contour errors, and feeds that
 keep them in tolerance.
 
-    fdid plan part.nc --model model.json --limits 100,2000,1e5 --tol 0.02 --optimize \\
+    fdid plan part.nc --model model.json --tol 0.02 --optimize \\
         --report plan.html --json plan.json -o part_opt.nc
+
+The axis limits are those the model recorded from its identification traces, unless
+``--limits-from TRACE`` or ``--limits`` give others; an axis the twin does not model follows
+its command (docs/plan-words.md: the words read and where the limits come from).
 
 The program is interpolated at the model's Ts (exact stop at every block end, jerk-limited
 S-curves within the axis limits; see :mod:`fdid_fmi.plan.interpolate`), or the controller's own
@@ -27,7 +31,8 @@ def register(sub):
     tw.add_argument("--model", help="identified model JSON (DriveModel)")
     tw.add_argument("--fmu", help="exported drive FMU (run through fmpy.simulate_fmu)")
     p.add_argument("--limits", action="append", default=[], metavar="[AXIS=]V,A,J",
-                   help="axis limits: velocity [mm/s], acceleration [mm/s^2], jerk [mm/s^3]; without AXIS= for all axes")
+                   help="axis limits: velocity [mm/s], acceleration [mm/s^2], jerk [mm/s^3]; without AXIS= for all axes "
+                        "(default: those the model recorded from its identification traces)")
     p.add_argument("--limits-from", default=None, metavar="TRACE",
                    help="estimate the limits from a recorded trace of the same machine")
     p.add_argument("--commands", default=None, metavar="TRACE",
@@ -121,19 +126,45 @@ def _check_options(args):
     return start, lim
 
 
-def _limits(args, given, axes_needed):
-    """--limits-from's estimates, overridden by --limits; every axis the program moves needs one."""
-    from ..plan.interpolate import limits_from_trace
-    lim = {}
+def _limits(args, given, axes_needed, model, twin_axes):
+    """The limits of every axis the program moves, and where each came from.
+
+    In order of precedence: ``--limits``, ``--limits-from TRACE``, the limits the model recorded
+    from its identification traces (``DriveModel.limits``). An axis the program moves that the
+    twin does not model (Z on an XY twin) and that none of these gives follows its command
+    ideally: it gets the slowest of the twin's axes' limits, said in the summary and the report.
+
+    Returns
+    -------
+    lim : dict axis -> AxisLimits;  origin : dict axis -> text
+    """
+    from ..plan.interpolate import AxisLimits, limits_from_trace
+    lim, origin = {}, {}
+    src = args.model or f"{args.fmu}:resources/model.json"
+    for a, d in (model.limits or {}).items():
+        lim[a] = AxisLimits(d["v_mm_s"], d["a_mm_s2"], d["j_mm_s3"])
+        origin[a] = f"recorded in the model from its identification traces ({d.get('method', '')})"
     if args.limits_from:
-        lim.update(limits_from_trace(_ranged_trace(args.limits_from, args)))
-    lim.update(given)
-    missing = [a for a in axes_needed if a not in lim]
+        for a, v in limits_from_trace(_ranged_trace(args.limits_from, args)).items():
+            lim[a], origin[a] = v, f"--limits-from {args.limits_from}"
+    for a, v in given.items():
+        lim[a], origin[a] = v, "--limits"
+    missing = [a for a in axes_needed if a in twin_axes and a not in lim]
     if missing:
-        raise InputError(f"the program moves axes {missing}, which have no limits: give --limits V,A,J "
-                         f"(mm/s, mm/s^2, mm/s^3) or AXIS=V,A,J, or --limits-from TRACE",
+        why = ("records none (a model saved before format version 3, which records the feed, acceleration "
+               "and jerk of its identification traces)" if not model.limits else
+               "records none for them (its identification traces did not move them)")
+        raise InputError(f"the program moves axes {missing}, which have no limits: {src} {why}: give --limits "
+                         f"V,A,J (mm/s, mm/s^2, mm/s^3) or AXIS=V,A,J, or --limits-from TRACE"
+                         + (", or identify the model again" if not model.limits else ""),
                          source=args.program, column="--limits")
-    return lim
+    known = [lim[a] for a in twin_axes if a in lim]
+    for a in axes_needed:
+        if a not in lim:        # not modelled and not given: it follows its command ideally
+            lim[a] = AxisLimits(min(x.v for x in known), min(x.a for x in known), min(x.j for x in known))
+            origin[a] = ("default for an axis the twin does not model: the slowest of the twin's axes' "
+                         "limits (give --limits AXIS=V,A,J for its own)")
+    return lim, origin
 
 
 def run(args):
@@ -144,7 +175,7 @@ def run(args):
     from ..plan.optimize import check_optimisable
     from ..plan.predict import cutting_contour_max_um, fmu_axes, model_from_fmu, predict
     from ..simulate import fits_sample_time
-    from ..plan.reporting import plan_report
+    from ..plan.reporting import plan_report, words_summary
 
     start, given_limits = _check_options(args)
     prog = read_program(args.program, start=start)
@@ -192,32 +223,44 @@ def run(args):
                   f"resampled to the model's Ts = {Ts:g} s")
         lim = None
     else:
-        lim = _limits(args, given_limits, prog.axes_used)
+        lim, origin = _limits(args, given_limits, prog.axes_used, model, axes)
         window = IN_POSITION_MM if args.in_position is None else args.in_position
         in_pos = InPosition(model, window) if window > 0 else None
         ip = interpolate(prog, lim, Ts, progress=True, corner_angle_deg=args.corner_angle, in_position=in_pos)
+        ip.info["limit_sources"] = origin
     # nothing is printed before here: every error the inputs or options can cause came first
     print(f"fdid plan: {args.program}: {len(prog.blocks)} blocks, axes moved {prog.axes_used}, "
           f"twin {'FMU ' + str(fmu) if fmu else 'model ' + args.model} (axes {axes}, Ts {Ts * 1e3:.4g} ms)")
     unmodelled = [a for a in prog.axes_used if a not in axes]
     if unmodelled:      # the contour error is measured in the model's axes only
-        print(f"  warning: the program moves {unmodelled}, which the twin does not model: their "
-              f"tracking errors, and contour errors out of the model's axes {axes}, are not predicted")
+        print(f"  warning: the program moves {unmodelled}, which the twin does not model: they follow their "
+              f"commands ideally; their tracking errors, and contour errors out of the model's axes {axes}, "
+              f"are not predicted")
+    if lim is not None:
+        for a in sorted(lim):
+            if a in prog.axes_used or a in axes:
+                print(f"  limits {a}: {lim[a].v:.4g} mm/s, {lim[a].a:.4g} mm/s^2, {lim[a].j:.4g} mm/s^3: "
+                      f"{origin[a].split(' (')[0]}")
+    read = words_summary(prog)
+    if read:
+        print(f"  words read: {read}")
     for r, text in prog.notes[:20]:
         print(f"  note: row {r}: {text}")
     for text in ip.info.get("notes", []):       # in-position waits that reached their cap
         print(f"  note: {text}")
     if len(prog.notes) > 20:
         print(f"  note: ... and {len(prog.notes) - 20} more")
-    if prog.ignored:        # 'row N', as the errors name a program line
-        print(f"  passed over: {', '.join(f'row {r}: {w}' for r, w in prog.ignored[:20])}"
-              + (" ..." if len(prog.ignored) > 20 else ""))
+    unread = [(r, w) for r, w in prog.ignored if w.startswith("not ")]
+    if unread:              # lines after the end of the program: 'row N', as the errors name it
+        print(f"  passed over: {', '.join(f'row {r}: {w}' for r, w in unread[:20])}"
+              + (" ..." if len(unread) > 20 else ""))
     twin = {"model": model} if fmu is None else {"fmu": fmu}
     pr = predict(ip, tol_mm=args.tol, program=prog, **twin)
     s = pr.summary
     print(f"  cycle time {s['cycle_time_s']:.3f} s; contour error RMS {s['contour_rms_um']:.2f} µm, "
           f"MAX {s['contour_max_um']:.2f} µm; "
-          + "; ".join(f"{a}: tracking MAX {v['error_max_um']:.1f} µm" for a, v in s["axes"].items()))
+          + "; ".join([f"{a}: tracking MAX {v['error_max_um']:.1f} µm" for a, v in s["axes"].items()]
+                      + [f"{a}: not predicted" for a in s.get("not_predicted", [])]))
     print("\n| block | line | kind | feed [mm/min] | time [s] | contour RMS [µm] | contour MAX [µm] | flag |")
     print("|---:|---:|---|---:|---:|---:|---:|---|")
     for r in pr.blocks:

@@ -430,7 +430,8 @@ def add_command_delay(model: DriveModel, axis, d):
         D2[ie, ic] += 1.0
     out = DriveModel(Ts=model.Ts, A=A2, B=B2, C=C2, D=D2, inputs=model.inputs, outputs=model.outputs,
                      method=model.method, poles=model.poles, identification=model.identification,
-                     metrics=model.metrics, effects=model.effects, provenance=model.provenance)
+                     metrics=model.metrics, effects=model.effects, provenance=model.provenance,
+                     limits=model.limits)
     return out
 
 

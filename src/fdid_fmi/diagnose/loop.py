@@ -295,7 +295,8 @@ def split_blocks(model: DriveModel):
             outputs=[model.outputs[o] for o in oo], method=model.method, poles=poles_of[k],
             identification=ident, metrics=_block_part(model.metrics, k),
             provenance=_block_part(model.provenance, k),
-            effects=[e for e in model.effects if e.get("axis") == ax]))
+            effects=[e for e in model.effects if e.get("axis") == ax],
+            limits={a: v for a, v in model.limits.items() if a == ax}))
     return out
 
 

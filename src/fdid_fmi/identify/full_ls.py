@@ -22,6 +22,7 @@ from scipy import optimize
 
 from ..errors import InputError, finite_number
 from ..signals import butter_filtfilt, derivative
+from .limits import recorded_limits
 from .lsfit import Fit
 from .pole_search import assemble
 from .ranges import training_ranges
@@ -192,4 +193,5 @@ def identify_full_ls(traces, axis="x", cutoff_hz=None, order=2, v_tilde=None, p_
     model.metrics = {"fit_rms_mm": float(np.sqrt(np.mean((Y - Phi @ theta) ** 2)))}
     model.provenance = {"data": [{"source": tr.source, "sha256": tr.meta.get("sha256") or tr.fingerprint()}
                                  for tr in traces]}
+    model.limits = recorded_limits(traces, model.axes)
     return model

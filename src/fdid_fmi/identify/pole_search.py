@@ -18,6 +18,7 @@ from .. import __version__
 from ..errors import InputError
 from ..model import DriveModel, Port, delayed_input, is_play
 from . import regressors as rg
+from .limits import recorded_limits
 from .lsfit import LSProblem
 from .record import PoleSearchRecord
 from .regressors import CHOSEN_FROM, SAME_SAMPLE
@@ -231,6 +232,7 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
                   "t_start_s": float(tr.t[0]), "t_stop_s": float(tr.t[-1]), "samples": tr.n}
                  for tr in traces],
     }
+    model.limits = recorded_limits(traces, model.axes)
     return model
 
 

@@ -2,7 +2,8 @@
 
 Imitated behaviour: a CNC that keeps the path velocity through a junction whose tangent
 directions differ by at most ``corner_angle_deg`` (a tangent line-arc transition, a chain of
-short collinear blocks) and stops exactly at every other corner; the path itself is never
+short collinear blocks) and stops exactly at every other corner (and at the end of every block the program
+puts in exact stop: G61 / G61.1 in force, or G9 in the block); the path itself is never
 blended (every sample lies on the programmed geometry). Per block the path velocity rises from
 the junction velocity v_s to a peak and falls to v_e through jerk-limited symmetric transitions
 (the tangential acceleration is zero at every block end, so it is continuous), with
@@ -298,7 +299,8 @@ def interpolate_lookahead(program, limits, Ts, corner_angle_deg, overrides=None,
     vj = np.zeros(n)
     for k in range(n - 1):
         b, c = blocks[k], blocks[k + 1]
-        if lim[k] is None or lim[k + 1] is None or b.kind == "rapid" or c.kind == "rapid":
+        if (lim[k] is None or lim[k + 1] is None or b.kind == "rapid" or c.kind == "rapid"
+                or b.exact_stop):       # G61 / G61.1 in force, or G9: the block ends at rest
             continue
         _, t1, _, k1 = _ends(b)
         t0, _, k0, _ = _ends(c)

@@ -29,16 +29,23 @@ What is read
   off (the switch's state is the operator's, not the program's), and listed in
   ``Program.notes`` so that the user knows it was planned; delete the line to plan without it.
 * numbers are written in digits (``X1e9``, exponent notation, is not G-code and is refused).
-* passed over and listed (they do not move the axes): ``S M T H D`` words and the G codes
-  ``G40 G49 G54-G59 G61 G64 G80`` (offsets and modes that do not change the programmed path), and
-  ``G64``'s ``P`` and ``Q`` (LinuxCNC's blending and naive-CAM tolerances: blending is not
-  imitated, every block ends in an exact stop).
+* the modal and non-motion words real programs carry, from the one table of
+  :mod:`fdid_fmi.plan.words` (docs/plan-words.md): work offsets ``G54``-``G59`` (``G59.1``-``.3``)
+  with their offsets applied where the program sets them (``G10 L2 P<n> X Y Z``); exact stop
+  ``G61``/``G61.1``/``G9`` (``Block.exact_stop``: the block ends at rest also under the
+  look-ahead) and ``G64`` (its ``P``/``Q`` tolerances noted: the path is never blended);
+  ``G28``/``G30`` (a rapid to the intermediate point, then to the reference position where
+  ``G28.1``/``G30.1`` stored it, else noted); ``G53`` moves; ``G4 X``/``U`` seconds (Fanuc).
+  Read and listed once (``Program.words``), not acting on the path in the twin's plane:
+  ``G40 G43 G43.1 G43.2 G49 G80`` and the cancels ``G15 G50.1 G67 G69``, ``G96 G97 G98 G99``,
+  ``S M T H D`` words (``M3``-``M9``, ``M6`` tool changes, ``M0``/``M1`` stops).
 * ``M2`` / ``M30`` end the program: lines after them are listed as not run, not read (a CNC
-  stops there; Fanuc-style subprograms often follow). ``M98`` / ``M99`` (subprogram call /
-  return) stop with an error: their motion would be missing.
-Anything else (another G code, ``A B C U V W`` axes, parameters ``#``, expressions) stops with
-an :class:`~fdid_fmi.errors.InputError` naming the file and line (``row N``: line N of the file,
-the word every message and list of ``fdid plan`` uses).
+  stops there; Fanuc-style subprograms often follow).
+Refused with an :class:`~fdid_fmi.errors.InputError` naming the file, the line (``row N``: line
+N of the file, the word every message and list of ``fdid plan`` uses) and the word: cutter
+radius compensation ``G41``/``G42``, canned cycles ``G73``-``G89``, ``G92``, subprograms
+(``M98``/``M99``, LinuxCNC O-words ``o100 sub`` / ``call`` / ``if`` / ``while``), parameters
+and expressions (``#1``, ``[...]``), ``A B C U V W`` axes and any G code not in the table.
 
 Arc checks: an ``I J K`` arc whose end point is not on its circle (|r_end - r_start| larger than
 the end-point tolerance 0.002 mm + 0.1 % of the radius, :func:`radius_tolerance`) is refused, as
@@ -59,17 +66,12 @@ import numpy as np
 
 from ..errors import InputError
 from ..io.common import decode_text_file, text_lines
+from .words import Action, code_key, lookup, supported_g
 
 INCH = 25.4
 _PLANES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}   # (first, second, normal) axis index
 _PLANE_NAMES = {17: "G17 (XY)", 18: "G18 (ZX)", 19: "G19 (YZ)"}
 _OFFSET_LETTER = {0: "I", 1: "J", 2: "K"}
-_IGNORED_G = {40, 49, 54, 55, 56, 57, 58, 59, 61, 64, 80}
-_IGNORED_LETTERS = set("SMTHD")
-_GROUPS = {0: "motion", 1: "motion", 2: "motion", 3: "motion", 4: "dwell",
-           17: "plane", 18: "plane", 19: "plane", 20: "units", 21: "units",
-           90: "distance", 91: "distance", 93: "feed mode", 94: "feed mode",
-           90.1: "arc distance", 91.1: "arc distance"}
 _WORD = re.compile(r"\s*([A-Za-z])\s*([+-]?(?:\d+\.?\d*|\.\d+))")
 _EXPONENT = re.compile(r"[eE][+-]?\d+")
 _RADIUS_ABS_TOL = 0.002        # mm
@@ -106,6 +108,8 @@ class Block:
     cw : bool         G2
     sweep : float     arc angle, rad (> 0)
     r0, r1 : float    arc radius at the start and end, mm
+    exact_stop : bool  the block ends at rest whatever the corner rule (G61, G61.1, G9; rapids
+                      and G28 / G30 returns)
     """
 
     index: int
@@ -126,6 +130,7 @@ class Block:
     sweep: float = 0.0
     r0: float = 0.0
     r1: float = 0.0
+    exact_stop: bool = False
 
     @property
     def length(self) -> float:
@@ -179,6 +184,9 @@ class Program:
                               ``utf-32-le`` / ``-be`` (always with their BOM: read only with it)
     newline : str             the line end of the file (its first one): ``\n``, ``\r\n`` or ``\r``
     axes_used : list[str]     axes that move (``x``, ``y``, ``z``)
+    words : dict              every word read, once: canonical key (``G43``, ``M6``, ``T``, ``/``;
+                              :mod:`fdid_fmi.plan.words`) -> the rows where it stands, in order of
+                              first use
     """
 
     blocks: list
@@ -189,6 +197,7 @@ class Program:
     encoding: str = "utf-8"
     notes: list = field(default_factory=list)
     newline: str = "\n"
+    words: dict = field(default_factory=dict)
 
     @property
     def axes_used(self):
@@ -277,6 +286,10 @@ def tokenize(code, source="<string>", row=None):
         m = _WORD.match(code, pos)
         if not m:
             bad = code[pos:].split()[0] if code[pos:].split() else code[pos:]
+            if "#" in bad or "[" in bad:
+                what = "parameter" if "#" in bad else "expression"
+                raise InputError(f"{what} '{bad[:30]}' is not supported (parameters, variables and "
+                                 f"expressions are not read): write the numbers", source=source, row=row)
             raise InputError(f"cannot read '{bad}' (expected a letter followed by a number, "
                              f"e.g. G1 X10.5 F600)", source=source, row=row)
         value = float(m.group(2))
@@ -311,8 +324,9 @@ def parse_program(text, source="<string>", start=(0.0, 0.0, 0.0)):
     if pos.shape != (3,) or not np.all(np.isfinite(pos)):
         raise InputError(f"start must be three finite numbers (x, y, z) in mm, got {start!r}", column="start")
     st = {"motion": None, "plane": 17, "units": "mm", "distance": 90, "arc distance": 91.1,
-          "feed mode": 94, "feed": None, "f_word": None}
-    blocks, ignored, notes = [], [], []
+          "feed mode": 94, "feed": None, "f_word": None, "wcs": 1, "offsets": {}, "moved": set(),
+          "switches": set(), "exact": None, "ref": {28: None, 30: None}, "ref_note": {}}
+    blocks, ignored, notes, seen = [], [], [], {}
     ended = None
     percent = []                             # rows of the '%' lines read: opening, closing
     lines = text_lines(text)
@@ -327,11 +341,18 @@ def parse_program(text, source="<string>", start=(0.0, 0.0, 0.0)):
             continue
         if line.startswith("%"):
             percent.append(row)
+            _see(seen, "%", row)
             continue
         deleted = line.startswith("/")       # block delete: run, as with the switch off
         if deleted:
             line = line[1:]
+            _see(seen, "/", row)
         code = _strip_comments(line, source, row)
+        if "(" in line:
+            _see(seen, "( )", row)
+        if ";" in line:
+            _see(seen, ";", row)
+        _refuse_o_word(code, source, row)
         words = tokenize(code, source, row)
         if not words:
             continue
@@ -341,26 +362,60 @@ def parse_program(text, source="<string>", start=(0.0, 0.0, 0.0)):
         if deleted:
             notes.append((row, "'/' (block delete) block run, as with the block-delete switch off"))
         ms = [(round(v, 1), txt) for letter, v, txt in words if letter == "M"]
-        calls = [txt for m, txt in ms if m in (98, 99)]
-        if calls:
-            raise _err(f"'{calls[0]}' (subprogram call / return) is not supported: expand the "
-                       "subprogram into the program", source, row)
-        b = _block(words, st, pos, source, row, raw, len(blocks), ignored, notes)
-        if b is not None:
+        for b in _block(words, st, pos, source, row, raw, len(blocks), ignored, notes, seen):
             blocks.append(b)
             pos = b.end.copy()
         ends = [txt for m, txt in ms if m in (2, 30)]
         if ends:
             ended = ends[0]                  # program end: a CNC runs nothing after it
     return Program(blocks=blocks, start=np.asarray(start, float), ignored=ignored, source=source,
-                   lines=lines, notes=notes, newline=eol.group(0) if eol else "\n")
+                   lines=lines, notes=notes, newline=eol.group(0) if eol else "\n", words=seen)
+
+
+_O_WORD = re.compile(r"\s*[Oo]\s*(<[^>]*>|\d+)\s*([A-Za-z]+)")
+
+
+def _refuse_o_word(code, source, row):
+    """LinuxCNC O-words with a keyword (``o100 sub``, ``o<name> call``, ``o101 if [...]``):
+    subroutines and control flow are not read; refused with the row and the word."""
+    m = _O_WORD.match(code)
+    if m and (m.group(1).startswith("<") or len(m.group(2)) > 1):
+        word = f"{code.strip().split()[0]} {m.group(2)}" if " " in code.strip() else m.group(0).strip()
+        raise _err(f"O-word '{word}' (subroutines and control flow) is not supported: expand it "
+                   f"into the program's moves", source, row)
 
 
 def _err(msg, source, row):
     return InputError(msg, source=source, row=row)
 
 
-def _block(words, st, pos, source, row, raw, index, ignored, notes=None):
+#: groups of G codes that set the motion (the rest: offsets, modes and cancels that do not move the
+#: axes, listed in Program.ignored as they were read)
+_MOTION_GROUPS = {"motion", "dwell", "plane", "units", "distance", "arc distance", "feed mode",
+                  "non-modal", "exact stop"}
+_WCS = {54: 1, 55: 2, 56: 3, 57: 4, 58: 5, 59: 6, 59.1: 7, 59.2: 8, 59.3: 9}
+_WCS_NAME = {n: f"G{g}" for g, n in _WCS.items()}
+
+
+def _see(seen, key, row):
+    """Count a word read (:attr:`Program.words`): rows per canonical key, in order of first use."""
+    seen.setdefault(key, []).append(row)
+
+
+def _g_number(value):
+    g = round(value, 1)
+    return int(g) if g == int(g) else g
+
+
+def _offset(st):
+    """The active work offset (mm, our frame): set by G10 L2, else 0."""
+    return st["offsets"].get(st["wcs"], np.zeros(3))
+
+
+def _block(words, st, pos, source, row, raw, index, ignored, notes=None, seen=None):
+    """The blocks of one line (none, one, or two for a G28 / G30 return): list of Block."""
+    notes = [] if notes is None else notes
+    seen = {} if seen is None else seen
     number = None
     gcodes, vals, texts, g64 = [], {}, {}, None
     for k, (letter, value, txt) in enumerate(words):
@@ -371,32 +426,57 @@ def _block(words, st, pos, source, row, raw, index, ignored, notes=None):
                 raise _err(f"line number '{txt}' must be a whole number 0 or more (e.g. N10)",
                            source, row)
             number = int(value)
+            _see(seen, "N", row)
         elif letter == "O":
             ignored.append((row, txt))
-        elif letter == "G":
-            g = round(value, 1)
-            g = int(g) if g == int(g) else g
-            if g in _IGNORED_G:
+            _see(seen, "O", row)
+        elif letter in "GM":
+            w = lookup(letter, value)
+            if w is None:
+                raise _err(f"G code '{txt}' is not supported (read: {' '.join(supported_g())}; "
+                           f"docs/plan-words.md)", source, row)
+            if w.action is Action.REFUSED:
+                raise _err(f"{w.meaning} '{txt}' is not supported: {w.effect}", source, row)
+            _see(seen, code_key(letter, value), row)
+            if letter == "M":
                 ignored.append((row, txt))
-                if g == 64:
-                    g64 = txt
-            elif g in _GROUPS:
-                gcodes.append((g, txt))
-            else:
-                raise _err(f"G code '{txt}' is not supported (read: G0 G1 G2 G3 G4 G17 G18 G19 G20 "
-                           f"G21 G90 G91 G90.1 G91.1 G93 G94)", source, row)
-        elif letter in _IGNORED_LETTERS:
+                continue
+            if w.group not in _MOTION_GROUPS:
+                ignored.append((row, txt))
+            g = _g_number(value)
+            if g == 64:
+                g64 = txt
+            gcodes.append((g, txt, w.group))
+        elif letter in "STHD":
             ignored.append((row, txt))
-        elif letter in "XYZIJKRFPQ":
+            _see(seen, letter, row)
+        elif letter in "XYZIJKRFPQLU":
             if letter in vals:
                 raise _err(f"word '{letter}' appears twice", source, row)
             vals[letter], texts[letter] = value, txt
+            if letter == "F":
+                _see(seen, "F", row)
         else:
-            kind = "axis" if letter in "ABCUVW" else "word"
+            kind = "axis" if letter in "ABCVW" else "word"
             raise _err(f"{kind} '{txt}' is not supported (linear axes X Y Z, arcs I J K R, feed F)",
                        source, row)
-    if g64 is not None:        # G64 P<tol> Q<tol>: blending tolerances, passed over with G64
-        if any(g == 4 for g, _ in gcodes) and "P" in vals:
+    groups = {}
+    for g, txt, grp in gcodes:
+        if grp in groups:
+            raise _err(f"'{groups[grp][1]}' and '{txt}' are both {grp} codes", source, row)
+        groups[grp] = (g, txt)
+    if "motion" in groups and "dwell" in groups:
+        raise _err("G4 and a motion code in one block", source, row)
+    nonmodal = groups.get("non-modal")
+    if nonmodal and "dwell" in groups:
+        raise _err(f"G4 and '{nonmodal[1]}' in one block", source, row)
+    if "U" in vals and "dwell" not in groups:
+        raise _err(f"axis '{texts['U']}' is not supported (linear axes X Y Z, arcs I J K R, feed F)",
+                   source, row)
+    if "L" in vals and not (nonmodal and nonmodal[0] == 10):
+        raise _err(f"word '{texts['L']}' is read with G10 only", source, row)
+    if g64 is not None:        # G64 P<tol> Q<tol>: blending tolerances (the path is never blended)
+        if "dwell" in groups and "P" in vals:
             raise _err(f"'{texts['P']}' with both G4 and {g64}: is it the dwell or the blending "
                        "tolerance? Put them in two blocks", source, row)
         for w in "PQ":
@@ -406,14 +486,6 @@ def _block(words, st, pos, source, row, raw, index, ignored, notes=None):
     if "Q" in vals:
         raise _err(f"word '{texts['Q']}' is not supported (read with G64 only, as its tolerance)",
                    source, row)
-    groups = {}
-    for g, txt in gcodes:
-        grp = _GROUPS[g]
-        if grp in groups:
-            raise _err(f"'{groups[grp][1]}' and '{txt}' are both {grp} codes", source, row)
-        groups[grp] = (g, txt)
-    if "motion" in groups and "dwell" in groups:
-        raise _err("G4 and a motion code in one block", source, row)
     # modal state first (RS-274 order of execution: feed mode, feed, plane, units, distance, motion)
     for grp in ("feed mode", "plane", "distance", "arc distance"):
         if grp in groups:
@@ -427,46 +499,75 @@ def _block(words, st, pos, source, row, raw, index, ignored, notes=None):
         st["f_word"] = vals["F"]
         if st["feed mode"] == 94:
             st["feed"] = vals["F"] * scale / 60.0      # mm/s
+    if "work offset" in groups:
+        _select_offset(st, _WCS[groups["work offset"][0]], groups["work offset"][1], row, notes)
+    if "path mode" in groups:
+        st["exact"] = groups["path mode"][0] in (61, 61.1)
+    exact = "exact stop" in groups or bool(st["exact"])
+    tool = groups.get("tool length")
+    if tool and tool[0] in (43.1, 43.2):       # X Y Z are offsets there, not a move
+        for w in "XYZ":
+            if w in vals:
+                ignored.append((row, f"{texts[w]} ({tool[1]} offset)"))
+                del vals[w]
     if "dwell" in groups:
-        if "P" not in vals or not vals["P"] >= 0:
-            raise _err("G4 needs P<seconds> >= 0", source, row)
-        extra = [w for w in vals if w not in ("P", "F")]
+        given = [w for w in ("P", "X", "U") if w in vals]
+        if len(given) != 1 or not vals[given[0]] >= 0:
+            raise _err("G4 needs one dwell time >= 0: P<seconds> (or X / U <seconds>, Fanuc)",
+                       source, row)
+        extra = [w for w in vals if w not in (given[0], "F")]
         if extra:
-            raise _err(f"G4 takes only P, got {extra}", source, row)
-        p = float(vals["P"])
-        if p >= 100 and p == int(p) and notes is not None:
+            raise _err(f"G4 takes only P (or X / U), got {extra}", source, row)
+        p = float(vals[given[0]])
+        if given[0] == "P" and p >= 100 and p == int(p):
             notes.append((row, f"G4 {texts['P']} is read as {p:.0f} s (P in seconds, as LinuxCNC "
                                f"reads it); a Fanuc program's P is in ms (X or U for seconds there): "
                                f"for {p / 1000:g} s write P{p / 1000:g}"))
-        return Block(index, row, number, raw, "dwell", pos.copy(), pos.copy(), 0.0,
-                     block_time=p, units=st["units"])
-    if "P" in vals:
-        raise _err("P is only read with G4 (dwell)", source, row)
+        return [Block(index, row, number, raw, "dwell", pos.copy(), pos.copy(), 0.0,
+                      block_time=p, units=st["units"])]
     if "motion" in groups:
         st["motion"] = groups["motion"][0]
+    if nonmodal and nonmodal[0] == 10:
+        _g10(st, vals, texts, scale, source, row, ignored, notes)
+        return []
+    if nonmodal and nonmodal[0] in (28.1, 30.1):
+        if any(w in vals for w in "XYZIJKRP"):
+            raise _err(f"{nonmodal[1]} stores where the tool is: it takes no axis words", source, row)
+        st["ref"][int(nonmodal[0])] = pos.copy()
+        return []
+    if "P" in vals:
+        raise _err("P is only read with G4 (dwell), G10 and G64", source, row)
+    if nonmodal and nonmodal[0] in (28, 30):
+        return _reference_return(int(nonmodal[0]), nonmodal[1], st, vals, pos, scale, source, row,
+                                 raw, number, index, notes)
+    machine = bool(nonmodal and nonmodal[0] == 53)
     axis_words = [w for w in "XYZ" if w in vals]
     arc_words = [w for w in "IJKR" if w in vals]
     if not axis_words and not arc_words:
         if "motion" in groups and groups["motion"][0] in (2, 3):
             raise _err(f"{groups['motion'][1]} without end point or centre", source, row)
-        return None                      # modal settings only
+        return []                        # modal settings only
     if st["motion"] is None:
         given = " ".join(texts[w] for w in axis_words + arc_words)
         raise _err(f"'{given}' without a motion mode (G0, G1, G2 or G3) in force: end points "
                    f"(X Y Z) and arc centres and radii (I J K R) are read only with one", source, row)
     motion = st["motion"]
+    if machine and (st["distance"] == 91 or motion not in (0, 1)):
+        raise _err(f"{nonmodal[1]} (machine coordinates) needs G90 and G0 or G1", source, row)
+    off = np.zeros(3) if machine else _offset(st)
     end = pos.copy()
     for a, w in enumerate("XYZ"):
         if w in vals:
             v = vals[w] * scale
-            end[a] = end[a] + v if st["distance"] == 91 else v
+            end[a] = end[a] + v if st["distance"] == 91 else v + off[a]
+    st["moved"].add(st["wcs"])
     units = st["units"]
     inverse = st["feed mode"] == 93 and motion != 0
     if motion == 0:
         if arc_words:
             raise _err(f"G0 takes no {'/'.join(arc_words)}", source, row)
-        return Block(index, row, number, raw, "rapid", pos.copy(), end, math.inf, units=units,
-                     f_word=st["f_word"])
+        return [Block(index, row, number, raw, "rapid", pos.copy(), end, math.inf, units=units,
+                      f_word=st["f_word"], exact_stop=exact)]
     if inverse:
         if "F" not in vals:
             raise _err("inverse-time (G93) block without F: every G1/G2/G3 needs its own F "
@@ -479,16 +580,108 @@ def _block(words, st, pos, source, row, raw, index, ignored, notes=None):
             raise _err(f"G1 takes no {'/'.join(arc_words)}", source, row)
         b = Block(index, row, number, raw, "line", pos.copy(), end, 0.0, units=units, f_word=st["f_word"])
     else:
-        b = _arc(index, row, number, raw, pos.copy(), end, motion == 2, st, vals, scale, source)
+        b = _arc(index, row, number, raw, pos.copy(), end, motion == 2, st, vals, scale, source, off)
+    b.exact_stop = exact
     if inverse:
         b.inverse_time, b.block_time = True, block_time
         b.feed = b.length / block_time if b.length > 0 else math.inf
     else:
         b.feed = st["feed"]
-    return b
+    return [b]
 
 
-def _arc(index, row, number, raw, start, end, cw, st, vals, scale, source):
+def _select_offset(st, n, txt, row, notes):
+    """G54..G59.3: the work offset n in force; a switch after moves, to or from an offset the
+    program does not set, is noted (both read as 0: the moves are planned as written)."""
+    old = st["wcs"]
+    st["wcs"] = n
+    if n == old or old not in st["moved"]:
+        return
+    unknown = [_WCS_NAME[k] for k in (old, n) if k not in st["offsets"]]
+    if unknown and (old, n) not in st["switches"]:
+        st["switches"].add((old, n))
+        notes.append((row, f"{txt} after {_WCS_NAME[old]}: the offset of {' and '.join(unknown)} is not "
+                           f"set in the program (G10 L2): read as 0, the moves are planned as written"))
+
+
+def _g10(st, vals, texts, scale, source, row, ignored, notes):
+    """G10 L2 P<n> X Y Z: set work offset n (the axes not given keep theirs); L1 / L10 / L11 (tool
+    table) are noted; L20, P0 and R are refused (their meaning differs between dialects or they
+    rotate the path)."""
+    if "L" not in vals:
+        raise _err("G10 needs L (G10 L2 P1..P9 X Y Z sets a work offset)", source, row)
+    L = vals["L"]
+    if L in (1, 10, 11):
+        ignored.append((row, f"G10 {texts['L']} (tool table)"))
+        return
+    if L == 20:
+        raise _err("'G10 L20' is not supported: LinuxCNC reads it relative to the current position, "
+                   "Fanuc as an extended work offset; write the offset as G10 L2 P1..P9 X Y Z", source, row)
+    if L != 2:
+        raise _err(f"'G10 {texts['L']}' is not supported (G10 L2 sets a work offset)", source, row)
+    if "R" in vals:
+        raise _err(f"'{texts['R']}' with G10 L2 rotates the coordinate system: not supported", source, row)
+    p = vals.get("P")
+    if p == 0:
+        raise _err("'G10 L2 P0': the active system (LinuxCNC) or the external offset (Fanuc)? "
+                   "Write P1..P9 (P1 = G54)", source, row)
+    if p is None or p != int(p) or not 1 <= p <= 9:
+        raise _err("G10 L2 needs P1..P9 (the work offset: P1 = G54 .. P6 = G59, P7..P9 = G59.1..G59.3)",
+                   source, row)
+    bad = [w for w in "IJK" if w in vals]
+    if bad:
+        raise _err(f"G10 L2 takes X Y Z, not {'/'.join(bad)}", source, row)
+    n = int(p)
+    off = st["offsets"].get(n, np.zeros(3)).copy()
+    for a, w in enumerate("XYZ"):
+        if w in vals:
+            off[a] = vals[w] * scale
+    st["offsets"][n] = off
+    notes.append((row, f"G10 L2 P{n}: work offset {_WCS_NAME[n]} = ({', '.join(f'{v:g}' for v in off)}) mm, "
+                       f"applied to the moves in {_WCS_NAME[n]}"))
+
+
+def _reference_return(which, txt, st, vals, pos, scale, source, row, raw, number, index, notes):
+    """G28 / G30: a rapid to the intermediate point (the axis words, LinuxCNC and Fanuc alike),
+    then to the reference position for the axes named (all when none is) when the program gave it
+    (G28.1 / G30.1); otherwise that move is noted and not planned."""
+    bad = [w for w in "IJKRF" if w in vals]
+    if bad:
+        raise _err(f"{txt} takes X Y Z (the intermediate point), not {'/'.join(bad)}", source, row)
+    named = [a for a, w in enumerate("XYZ") if w in vals]
+    off = _offset(st)
+    blocks, p = [], pos.copy()
+    mid = pos.copy()
+    for a in named:
+        v = vals["XYZ"[a]] * scale
+        mid[a] = pos[a] + v if st["distance"] == 91 else v + off[a]
+    if np.any(mid != pos):
+        blocks.append(Block(index, row, number, raw, "rapid", p, mid, math.inf, units=st["units"],
+                            f_word=st["f_word"], exact_stop=True))
+        p = mid
+    ref = st["ref"][which]
+    if ref is None:         # noted once per code, with every row where it stands
+        k, rows = st["ref_note"].setdefault(which, (len(notes), []))
+        rows.append(row)
+        also = f" (also row{'s' if len(rows) > 2 else ''} {', '.join(map(str, rows[1:]))})" if len(rows) > 1 else ""
+        text = (f"G{which}{also}: the reference position is not given in the program (G{which}.1 stores it): "
+                f"the move to it is not planned; the next block starts from the intermediate point (the axis "
+                f"words), or where the tool is")
+        if len(rows) == 1:
+            notes.append((row, text))
+        else:
+            notes[k] = (rows[0], text)
+        return blocks
+    end = p.copy()
+    for a in (named or [0, 1, 2]):
+        end[a] = ref[a]
+    if np.any(end != p):
+        blocks.append(Block(index + len(blocks), row, number, raw, "rapid", p.copy(), end, math.inf,
+                            units=st["units"], f_word=st["f_word"], exact_stop=True))
+    return blocks
+
+
+def _arc(index, row, number, raw, start, end, cw, st, vals, scale, source, off=None):
     plane = st["plane"]
     i, j, k = _PLANES[plane]
     name = f"G{2 if cw else 3}"
@@ -524,8 +717,9 @@ def _arc(index, row, number, raw, start, end, cw, st, vals, scale, source):
             side = -side
         c = mid + side * h * perp
     else:
-        off = np.array([vals.get(_OFFSET_LETTER[i], 0.0), vals.get(_OFFSET_LETTER[j], 0.0)]) * scale
-        c = off if st["arc distance"] == 90.1 else p0 + off
+        off_ij = np.array([vals.get(_OFFSET_LETTER[i], 0.0), vals.get(_OFFSET_LETTER[j], 0.0)]) * scale
+        shift = np.zeros(2) if off is None else np.array([off[i], off[j]])
+        c = off_ij + shift if st["arc distance"] == 90.1 else p0 + off_ij
     r0 = float(np.linalg.norm(p0 - c))
     r1 = float(np.linalg.norm(p1 - c))
     if r0 == 0:

@@ -368,6 +368,8 @@ def summary(pr, tol_mm=None):
     for a in pr.axes:
         out["axes"][a] = {"error_rms_um": rms(pr.error[a]) * 1e3,
                           "error_max_um": float(np.max(np.abs(pr.error[a]))) * 1e3}
+    # axes the program moves that the twin does not model: they follow their commands ideally
+    out["not_predicted"] = [a for a, x in ip.positions.items() if a not in pr.axes and np.ptp(x) > 0]
     out["contour_rms_um"] = rms(pr.contour) * 1e3
     out["contour_max_um"] = float(np.max(np.abs(pr.contour))) * 1e3
     if tol_mm is not None:

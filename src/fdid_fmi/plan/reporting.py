@@ -93,6 +93,45 @@ def error_figures(rep, name, pr, tol_mm=None):
 _BLOCK_COLS = ["block", "line", "N", "kind", "feed_mm_min", "length_mm", "duration_s"]
 
 
+def _rows_text(rows, n=8):
+    head = ", ".join(map(str, rows[:n]))
+    return head + (f", ... ({len(rows)} rows)" if len(rows) > n else "")
+
+
+def words_table(program):
+    """Every word the program carries, once: its rows, how it was read (applied / noted, from
+    :data:`fdid_fmi.plan.words.VOCABULARY`), what it is and what the planner does with it."""
+    from .words import BY_KEY, lookup
+    out = []
+    for key, rows in program.words.items():
+        w = BY_KEY.get(key) or lookup(key[0], float(key[1:]))
+        out.append({"word": key, "rows": _rows_text(rows), "read as": w.action.value,
+                    "what it is": w.meaning, "what the planner does": w.effect})
+    return out
+
+
+def words_summary(program):
+    """One line: the words applied and the words noted (read, not acting on the path)."""
+    from .words import Action, BY_KEY, lookup
+    by = {Action.APPLIED: [], Action.NOTED: []}
+    for key in program.words:
+        w = BY_KEY.get(key) or lookup(key[0], float(key[1:]))
+        by[w.action].append(key)
+    parts = []
+    if by[Action.APPLIED]:
+        parts.append("applied " + " ".join(by[Action.APPLIED]))
+    if by[Action.NOTED]:
+        parts.append("noted (read, not acting on the path in the twin's plane) " + " ".join(by[Action.NOTED]))
+    return "; ".join(parts)
+
+
+def limits_table(info):
+    """The axis limits the interpolation used and where each came from."""
+    src = info.get("limit_sources", {})
+    return [{"axis": a, "v [mm/s]": v["v"], "a [mm/s²]": v["a"], "j [mm/s³]": v["j"],
+             "from": src.get(a, "given")} for a, v in sorted(info.get("limits", {}).items())]
+
+
 def plan_report(program, pr, model=None, tol_mm=None, feed_plan=None, fmu=None, validation=None,
                 title=None, meta=None):
     """:class:`~fdid_fmi.report.Report` of a prediction (and optionally of a feed optimisation).
@@ -113,6 +152,13 @@ def plan_report(program, pr, model=None, tol_mm=None, feed_plan=None, fmu=None, 
         words += (f"With a tolerance of {tol_mm * 1e3:.3g} µm, "
                   + (f"{len(flagged)} block(s) exceed it: {', '.join(map(str, flagged))}." if flagged
                      else "every block stays inside it."))
+    srcs = pr.interp.info.get("limit_sources", {})
+    if srcs:
+        words += (" Axis limits: " + "; ".join(f"{a}: {t.split(' (')[0]}" for a, t in sorted(srcs.items()))
+                  + " (the limits table).")
+    if s.get("not_predicted"):
+        words += (f" The twin does not model {', '.join(s['not_predicted'])}: they follow their commands "
+                  "ideally, and their errors are not predicted.")
     rep.add_text(words, heading="Summary")
     if program.notes:       # how blocks were read (block delete): as the console says them
         rep.add_text("How the program was read: " + "; ".join(f"line {r}: {w}" for r, w in program.notes[:60])
@@ -124,11 +170,23 @@ def plan_report(program, pr, model=None, tol_mm=None, feed_plan=None, fmu=None, 
                      + "; ".join(f"line {w['line']}: {w['wait_s']:.3f} s" for w in waits[:60])
                      + ("; ..." if len(waits) > 60 else "") + ". "
                      + " ".join(pr.interp.info.get("notes", [])))
-    if program.ignored:
-        rep.add_text("Passed over (they do not move the axes): "
-                     + ", ".join(f"line {r}: {w}" for r, w in program.ignored[:60]))
+    unread = [(r, w) for r, w in program.ignored if w.startswith("not ")]
+    if unread:
+        rep.add_text("Lines not run: " + ", ".join(f"line {r}: {w}" for r, w in unread[:60])
+                     + (", ..." if len(unread) > 60 else ""))
+    if program.words:
+        rep.add_table("words", words_table(program),
+                      caption="the words the program carries, each once: the rows where it stands; applied "
+                              "(it shapes the motion) or noted (read, not acting on the path in the twin's "
+                              "plane); docs/plan-words.md lists every word the reader knows")
+    lims = limits_table(pr.interp.info)
+    if lims:
+        rep.add_table("limits", lims, caption="axis limits the program was interpolated within "
+                      "(velocity, acceleration, jerk) and where each came from")
     rows = [{"axis": a, "tracking RMS [µm]": v["error_rms_um"], "tracking MAX [µm]": v["error_max_um"]}
             for a, v in s["axes"].items()]
+    rows += [{"axis": a, "tracking RMS [µm]": "not predicted", "tracking MAX [µm]": "not predicted"}
+             for a in s.get("not_predicted", [])]
     rows.append({"axis": "contour", "tracking RMS [µm]": s["contour_rms_um"], "tracking MAX [µm]": s["contour_max_um"]})
     rep.add_table("program", rows, caption="whole program: predicted tracking error per axis and contour error")
     if len(pr.axes) >= 2:
@@ -172,7 +230,8 @@ def plan_report(program, pr, model=None, tol_mm=None, feed_plan=None, fmu=None, 
     rep.add_data("summary", s)
     rep.add_data("interpolation", pr.interp.info)
     rep.add_data("program", {"source": str(program.source), "notes": [[r, w] for r, w in program.notes],
-                             "passed_over": [[r, w] for r, w in program.ignored]})
+                             "passed_over": [[r, w] for r, w in program.ignored],
+                             "words": {k: list(v) for k, v in program.words.items()}})
     if model is not None:
         add_model_section(rep, model, fmu=fmu, validation=validation)
     return rep
