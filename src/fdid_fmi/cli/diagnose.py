@@ -185,7 +185,7 @@ def run(args):
         print(f"  FMU check: {fmu['error']}")
     fmu_problems = [f"{label} model: {pr}" for label in ("before", "after")
                     for pr in (fmu or {}).get(label, {}).get("problems", [])]
-    for pr in fmu_problems:     # as fdid validate says them (helper-55: the FMU RMS alone read as agreement)
+    for pr in fmu_problems:     # as fdid validate says them: the FMU RMS alone reads as agreement
         print(f"  FMU check, {pr}")
     for note in diag.notes:
         print(f"note ({note.kind.value}): {note.text}")

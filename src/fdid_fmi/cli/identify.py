@@ -400,8 +400,8 @@ def summary(model, trace=None):
         for ax, g in model.gains.items():
             lines.append(f"{ax}: K_vel {g['K_vel']:.6g} s, K_acc {g['K_acc']:.6g} s^2, K_jerk {g['K_jerk']:.6g} s^3")
     if trace is not None:
-        # over the --range pieces when given (each run from its own start, as simulate runs them;
-        # helper-55: the whole record was summarised without a word)
+        # over the --range pieces when given (each run from its own start, as simulate runs them),
+        # not the whole record
         ranges = trace.meta.get("ranges")
         pieces = trace.select(ranges)
         sims = [simulate(model, tr) for tr in pieces]

@@ -42,7 +42,7 @@ def run(args):
         print()
     if args.json:
         data = results_json(results)
-        # what was validated (helper-56: the JSON did not say which FMU, trace or reference)
+        # what was validated: which FMU, trace and reference
         data["inputs"] = {"fmu": str(args.fmu), "trace": str(args.trace), "ranges_s": trace.meta.get("ranges"),
                           "model": str(args.model) if args.model else "the model.json inside the FMU"}
         atomic_write(args.json, json.dumps(data, indent=1, allow_nan=False))
