@@ -164,8 +164,8 @@ def test_a_damaged_export_is_one_error_line(xml, tmp_path, edit, words):
 
 
 def test_identify_on_the_frequency_response_trace_says_what_it_is(shared_data, capsys, tmp_path):
-    """helper-55: 'no axis with both cmd and act channels; use --map', and --map was then refused
-    for a SINUMERIK XML: the message now says what the file is and what reads it."""
+    """Not 'no axis with both cmd and act channels; use --map' (--map is refused for a SINUMERIK
+    XML): the message says what the file is and what reads it."""
     from cli_support import one_line, run_cli
     xml = shared_data / "sinumerik_trace" / "freq_trace.XML"
     code, _, err = run_cli(capsys, "identify", xml, "-o", tmp_path / "m.json")

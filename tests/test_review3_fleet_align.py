@@ -1,5 +1,5 @@
-"""Review 3, the fleet and alignment layers: hostile manifests, the rerun cache, the sensor readers
-and the align CLI. Each test fails without the fix it guards (checked by reverting the fix)."""
+"""The fleet and alignment layers: hostile manifests, the rerun cache, the sensor readers and the
+align CLI. Each test fails without the code it guards."""
 import ast
 import json
 from pathlib import Path
@@ -493,8 +493,8 @@ def test_missing_compiler_on_a_worker_is_retried_not_kept(built_entry, tmp_path,
 
 
 def test_trace_notes_are_kept_in_the_entry_not_printed_by_the_worker(tmp_path, capsys):
-    # session 35: the readers' notes (here: columns that state no unit, read as mm) were printed
-    # by the worker (interleaved in the console, or lost in a Dask worker's log) and not kept
+    # the readers' notes (here: columns that state no unit, read as mm) are kept with the entry,
+    # not printed by the worker (interleaved in the console, or lost in a Dask worker's log)
     from fdid_fmi.fleet.manifest import entry_hash, software_version
     from fdid_fmi.fleet.runner import FleetResult, table_rows
     from fdid_fmi.fleet.virtual import VirtualAxis, axis_trace, write_trace_csv
@@ -513,7 +513,7 @@ def test_trace_notes_are_kept_in_the_entry_not_printed_by_the_worker(tmp_path, c
     assert res.ok, res.error
     assert "note:" not in capsys.readouterr().out
     assert res.notes == ["x.csv: columns x_cmd (mm), x (mm) state no unit and are read in these units; if one "
-                         "is in another, name it like x_um or give units = { COLUMN = \"UNIT\" }"]   # review 7: manifest words
+                         "is in another, name it like x_um or give units = { COLUMN = \"UNIT\" }"]   # in the manifest's words
     assert EntryResult.from_dict(res.to_dict()).notes == res.notes
     fr = FleetResult(out=str(tmp_path / "out"), manifest="plant.toml", previous=None, executor="test", workers=1,
                      entries=[res])

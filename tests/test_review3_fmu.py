@@ -1,19 +1,19 @@
-"""Review 3 of the FMU's C plumbing against FMI 2.0 / 3.0 Co-Simulation (fmi2Functions.c,
+"""The FMU's C plumbing against FMI 2.0 / 3.0 Co-Simulation (fmi2Functions.c,
 fmi3Functions.c, fdid_instance.c), driven through fmpy's low-level FMU2Slave / FMU3Slave and raw
 ctypes calls, on both FMI versions of one hand-built SISO model (built once per module).
 
-Defects found and fixed (each test below failed on the templates before the fix):
-  * a doStep that left the model state infinite / NaN returned OK (the error came first at a
-    later get, never for a master that reads other outputs or none), and GetFMUstate then handed
-    out a state that SetFMUstate refused;
-  * '#' in a logged message (from a master's string: GUID, log category) was not written '##',
-    so a master that expands variable references (#r12# / #12#) misread it;
+What the tests below guard (each fails on templates without it):
+  * a doStep that leaves the model state infinite / NaN does not return OK (else the error comes
+    first at a later get, never for a master that reads other outputs or none), and GetFMUstate
+    hands out no state that SetFMUstate refuses;
+  * '#' in a logged message (from a master's string: GUID, log category) is written '##', so a
+    master that expands variable references (#r12# / #12#) does not misread it;
   * a deserialized FMU state with inconsistent step flags (steps counted but no doStep taken;
-    initial state to be recomputed after a doStep) was accepted, and the FMU time then jumped
-    back to the start time at the next step while the master's time ran on.
-  * SetFMUstate accepted an FMU state of another fdid FMU whose states have the same size (same
-    model structure, other parameters): the FMU silently went on with the other model's state.
-The other tests pin down behaviour the review checked and found correct.
+    initial state to be recomputed after a doStep) is refused; accepted, the FMU time would jump
+    back to the start time at the next step while the master's time runs on;
+  * SetFMUstate refuses an FMU state of another fdid FMU whose states have the same size (same
+    model structure, other parameters): the FMU would silently go on with the other model's state.
+The other tests pin down behaviour that is correct as it is.
 """
 import ctypes
 import re
@@ -42,7 +42,7 @@ OFF_STEPS, OFF_INIT_DIRTY, OFF_STARTED = GUID + 16, GUID + 24, GUID + 32
 
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory):
-    d = tmp_path_factory.mktemp("review3")
+    d = tmp_path_factory.mktemp("fmu_plumbing")
     out = {}
     for v in (2, 3):
         path = export_fmu(fs.siso_model(), d / f"r{v}.fmu", fmi_version=v)
@@ -53,7 +53,7 @@ def fmus(tmp_path_factory):
 @pytest.fixture(scope="module")
 def other_fmus(tmp_path_factory):
     """FMUs of another model with the same structure (so FMU states of the same size)."""
-    d = tmp_path_factory.mktemp("review3_other")
+    d = tmp_path_factory.mktemp("fmu_plumbing_other")
     out = {}
     for v in (2, 3):
         path = export_fmu(fs.siso_model(level=2.0, zeta=0.5), d / f"o{v}.fmu", fmi_version=v)

@@ -1,7 +1,6 @@
-"""Review 4, the fleet layer: an entry whose FMU validation fails is not "ok", the missing compiler
+"""The fleet layer: an entry whose FMU validation fails is not "ok", the missing compiler
 is an error type (not a column name), manifest options are not abbreviated, and entry names that
-differ only in case are refused. Each test fails without the fix it guards (checked by reverting
-the fix)."""
+differ only in case are refused. Each test fails without the code it guards."""
 import json
 from pathlib import Path
 
@@ -24,7 +23,7 @@ def unmeasured(tmp_path_factory):
     through fmpy, but no discrepancy to the measurement can be computed."""
     from fdid_fmi.cli import main
     from fdid_fmi.fleet.virtual import VirtualAxis, axis_trace, write_trace_csv
-    root = tmp_path_factory.mktemp("review4")
+    root = tmp_path_factory.mktemp("fleet_entry")
     va = VirtualAxis("m01", "x", "deckel_maho_like")
     write_trace_csv(axis_trace(va, 1, n_moves=3), "x", root / "x.csv")
     full = write_trace_csv(axis_trace(va, 2, n_moves=3), "x", root / "full.csv")

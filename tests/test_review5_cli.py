@@ -1,4 +1,4 @@
-"""Review round 5, the command line as a user meets it: abbreviated options refused, the
+"""The command line as a user meets it: abbreviated options refused, the
 ``fdid identify`` summary's v_tilde line, plain numbers from ``examples/emps_identify.py``, and a
 failed ``fdid demo`` that leaves no empty or half-filled output folder behind."""
 import argparse
@@ -229,8 +229,8 @@ def test_staged_output_moves_files_only_when_the_run_succeeds(tmp_path):
 
 
 def test_an_axis_without_its_measured_position_is_named_not_dropped(capsys, tmp_path):
-    """A trace whose y axis has its command column but not its measured one was identified on x
-    alone without a word (a review, session 34): the summary now says y is not identified."""
+    """A trace whose y axis has its command column but not its measured one is identified on x
+    alone, and the summary says y is not identified."""
     lines = (ROOT / "examples" / "virtual_circle.csv").read_text().splitlines()
     (tmp_path / "nocol.csv").write_text("\n".join(",".join(ln.split(",")[:4]) for ln in lines) + "\n")
     assert main(["identify", str(tmp_path / "nocol.csv"), "--method", "quasi-static",

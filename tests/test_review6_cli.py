@@ -1,4 +1,4 @@
-"""Review round 6, the command line: an option that is given but not read is refused
+"""The command line: an option that is given but not read is refused
 (``fdid diagnose --val-range`` without ``--val``, ``--exclude`` of a channel no trace has), a
 held-out trace that is the training trace is refused, ... Each refusal is one error line, exit 2,
 before any fit (a guard replaces the diagnosis, so a regression fails fast instead of fitting)."""
@@ -170,7 +170,7 @@ def test_fleet_run_of_a_directory_says_it_is_a_directory(tmp_path, capsys):
     d = tmp_path / "night1"
     d.mkdir()
     (d / "plant.toml").write_text(_ENTRY)
-    # before: "night1: manifest file not found", though night1 exists
+    # not "night1: manifest file not found", though night1 exists
     code = _exit_code(["fleet", "run", d, "--out", tmp_path / "o"])
     line = _one_error(capsys, "fdid fleet")
     assert code == 2 and "is a directory, not a manifest file" in line and "plant.toml" in line, line
@@ -265,8 +265,8 @@ def test_no_common_motion_within_max_offset_names_the_bound():
 
 
 def test_identify_summary_covers_the_ranges_given(diag_files, capsys):
-    """helper-55: with --range the free-run table summarised the whole record without a word;
-    it covers the ranges, each run from its own start as fdid simulate runs them."""
+    """With --range the free-run table covers the ranges, each run from its own start as fdid
+    simulate runs them, not the whole record."""
     import re
     from fdid_fmi.io import read_trace
     d = diag_files
@@ -284,8 +284,8 @@ def test_identify_summary_covers_the_ranges_given(diag_files, capsys):
 
 
 def test_identify_notes_a_position_that_does_not_follow_its_command(diag_files, tmp_path, capsys):
-    """helper-55: a command in m beside a position in mm (tracking error 99 % of the motion) was
-    identified without a word. The same file with matching units gets no note."""
+    """A command in m beside a position in mm (tracking error 99 % of the motion) is identified
+    with a note. The same file with matching units gets no note."""
     d = diag_files
     text = (d / "train.csv").read_text().replace("t_s,x_cmd_mm,x_mm", "t_s,x_cmd_m,x_mm")
     (tmp_path / "m_mm.csv").write_text(text)

@@ -319,9 +319,8 @@ def test_validate_names_an_fmu_sampled_at_another_ts_than_the_reference(fmu_case
 
 
 def test_validate_names_an_fmu_of_another_model_with_the_same_variables(fmu_case):
-    """Before: "FMU and reference simulator differ by 0.00105 mm ...; the reference itself moves
-    by 1.01e-05 mm when the commands are perturbed ... so no implementation can agree", blaming
-    friction for a model mix-up (session 34's review: an FMU of another trace's model)."""
+    """An FMU of another trace's model (B 0.1 % off) is named as a model mix-up, not blamed on
+    friction ("the reference itself moves by 1.01e-05 mm when the commands are perturbed ...")."""
     from fdid_fmi.fmu import export_fmu, validate_fmu
     model, fmu, va, d = fmu_case
     other = model.to_dict()
@@ -337,10 +336,10 @@ def test_validate_names_an_fmu_of_another_model_with_the_same_variables(fmu_case
 def test_validate_says_what_explains_a_missed_target():
     """A missed target is a problem with its reason: the model the FMU carries differs from the
     reference; or the reference moves as far under a 1e-12 mm perturbation of its commands (EMPS
-    PULSES with the rigid model: 4.6e-9 against 5.3e-9 mm; before, the message said "no
-    implementation can agree" and still failed: now it names the --tolerance that accepts it; a
-    maximum-only floor was tried in session 34 and dropped: a float32 FMU, 9.5e-7 mm off, passed
-    under the demo model's 6.4e-6 mm); or the FMU does not compute the reference model."""
+    PULSES with the rigid model: 4.6e-9 against 5.3e-9 mm; the message names the --tolerance that
+    accepts it, and the target is not passed on the sensitivity alone: a float32 FMU, 9.5e-7 mm
+    off, would pass under the demo model's 6.4e-6 mm); or the FMU does not compute the reference
+    model."""
     from fdid_fmi.fmu.validate import _reference_problem
     assert _reference_problem(4.6e-9, 1e-9, 5.33e-9).endswith("determined only to 5.33e-09 mm here; if that "
                                                             "is the cause, --tolerance 5.6e-09 accepts it")
@@ -390,7 +389,7 @@ def test_diagnosis_says_when_the_held_out_trace_is_in_other_units(small):
 
 
 def test_held_out_unlike_note_without_a_held_out_trace_names_the_record_s_parts():
-    """No --val: the held-out data are the record's second part (helper-57: the note spoke of two
+    """No --val: the held-out data are the record's second part (the note does not speak of two
     traces). One record whose second part is in µm under the first part's mm."""
     from fdid_fmi.diagnose.limits import held_out_unlike
     before = {"train": {"x": {"rms_um": 1.0}}, "val": {"x": {"rms_um": 100.0}}}
@@ -404,8 +403,8 @@ def test_held_out_unlike_note_without_a_held_out_trace_names_the_record_s_parts(
 
 
 def test_evidence_figures_label_every_axis_with_a_unit():
-    """helper-56: the mode figure's left axis and the periodic figure had no y label, and the
-    coherence curve was not in the mode figure's legend."""
+    """Every axis of the evidence figures has a y label with a unit (the mode figure's left axis,
+    the periodic figure), and the coherence curve is in the mode figure's legend."""
     import re
     import matplotlib
     matplotlib.use("Agg")
@@ -425,7 +424,7 @@ def test_evidence_figures_label_every_axis_with_a_unit():
 
 
 def test_progress_line_gives_parameters_in_words():
-    """helper-59 (session 36): the progress line printed the effect's parameters as a Python dict
+    """The progress line gives the effect's parameters in words with 4 digits, not as a Python dict
     with 17 digits ({'v_s_mm_s': 1.2583806379509181})."""
     from fdid_fmi.diagnose.loop import _params_words
     assert _params_words({"v_s_mm_s": 1.2583806379509181, "channel": "y_cmd", "samples": 3}) == \
