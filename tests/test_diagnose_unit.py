@@ -244,8 +244,8 @@ def test_report_is_self_contained_html_with_figure_data(tmp_path):
 
 
 def test_report_data_survives_hostile_text_and_never_writes_through_a_symlink(tmp_path):
-    """Found by a review: a meta value '<!--<script>' left the embedded JSON unclosed, and
-    ``Report.write`` followed a symlink at the output path onto the file it points to."""
+    """A meta value '<!--<script>' does not leave the embedded JSON unclosed, and
+    ``Report.write`` does not follow a symlink at the output path onto the file it points to."""
     evil = "run <!--<script> A </script>"
     rep = Report("t", meta={"source": evil})
     text = rep.html()

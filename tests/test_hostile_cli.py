@@ -365,7 +365,7 @@ def test_search_refuses_when_no_objective_is_finite():
 def test_plan_never_writes_over_its_inputs(capsys, tmp_path, extra, word):
     """fdid plan's outputs are checked against every input (the program, the twin, --limits-from,
     --commands) and against each other before any work: a trace given as --limits-from and --csv
-    was overwritten by the prediction (found by a review)."""
+    would be overwritten by the prediction."""
     tr = tmp_path / "tr.csv"
     tr.write_text("t_s,x_cmd_mm,x_mm\n0,0,0\n0.001,1,1\n")
     before = tr.read_bytes()

@@ -71,7 +71,7 @@ def test_file_size_limit_while_compiling(tmp_path, built):
     r = _export_limited(model, out, largest_source + 1024)
     line = one_line(r.returncode, r.stderr, "cannot write the compiled FMU binary (gcc)",
                     f"file-size limit (ulimit -f: {largest_source + 1024} bytes)")
-    assert "-O2" not in line and "internal compiler error" not in line    # before: gcc's raw lines
+    assert "-O2" not in line and "internal compiler error" not in line    # not gcc's raw lines
     assert not out.exists() and _left(tmp_path) == []
 
 

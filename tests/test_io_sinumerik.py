@@ -148,7 +148,7 @@ def test_sinumerik_errors(tmp_path, sat):
      ["node id 61", "twice"]),
 ])
 def test_a_damaged_export_is_one_error_line(xml, tmp_path, edit, words):
-    """Damage an export the reader does not expect (found by a review: each one escaped as a
+    """Damage an export the reader does not expect (each one would escape as a
     ValueError, AttributeError or LookupError): one InputError naming what is wrong."""
     text = xml.read_bytes().decode("latin-1")
     damaged = edit(text)

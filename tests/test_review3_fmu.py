@@ -198,8 +198,8 @@ def _flags(b):
 def test_a_state_with_inconsistent_step_flags_is_refused(fmus, v):
     """A serialized state comes from outside and is checked field by field. Steps counted with
     no doStep taken (or an initial state to recompute after one) is no state the FMU can be in:
-    before the fix it was accepted, and the next output evaluation re-initialized the model and
-    set the FMU time back (lastSuccessfulTime 1 Ts after doStep(5 Ts, Ts))."""
+    accepted, the next output evaluation would re-initialize the model and set the FMU time back
+    (lastSuccessfulTime 1 Ts after doStep(5 Ts, Ts))."""
     with Slave(fmus, v).start() as s:
         before = bytes(s.serialize(s.get_state()))      # after ExitInitializationMode, no step
         assert _flags(before) == (0, 0, 0)
@@ -229,8 +229,8 @@ def test_a_state_with_inconsistent_step_flags_is_refused(fmus, v):
 def test_a_state_of_another_fmu_is_refused(fmus, other_fmus, v):
     """FMI 2.0.4 2.1.8 / FMI 3.0 2.2.7.4 (the complete FMU state): SetFMUstate restores a state
     this FMU copied. Two axis FMUs of one structure (a master keeping their states in one array) have
-    states of the same size and kind; before the fix B took A's state with OK and simulated on
-    with A's parameters and A's time. The serialized form was already checked (GUID)."""
+    states of the same size and kind; unchecked, B would take A's state with OK and simulate on
+    with A's parameters and A's time. The serialized form is checked as well (GUID)."""
     with Slave(fmus, v, "a").start({"x_x_cmd": 0.3}) as a, Slave(other_fmus, v, "b").start() as b:
         a.f.doStep(0.0, TS)
         sa, sb = a.get_state(), b.get_state()

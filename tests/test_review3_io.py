@@ -75,7 +75,7 @@ def test_valid_gui_axes_read_each_column_onto_its_axis(verify_gui):
     assert tr.axes == ["a1", "axis2"]
     np.testing.assert_allclose(tr.act("a1"), x1)
     np.testing.assert_allclose(tr.cmd("axis2"), x2 + e2)
-    # a string is a comma list, as --axes (before: "z,y" was split into 'z', ',', 'y')
+    # a string is a comma list, as --axes (not split into 'z', ',', 'y')
     tr = read_text(verify_gui, axes="z,y")
     np.testing.assert_allclose(tr.act("z"), x1)
     np.testing.assert_allclose(tr.act("y"), x2)

@@ -61,8 +61,8 @@ def test_the_note_statistic_does_not_grow_with_the_share_of_rest():
     assert s_short == pytest.approx(15.0, rel=0.1) and s_long == pytest.approx(s_short, rel=0.1)
     assert s_long < REVERSAL_SUSPECT
     assert [n.kind for n in data_limits(["y"], set(), {"y": s_long}, [])] == [NoteKind.NOT_OBSERVABLE]
-    # the pooled reference (the Stribeck detector's statistic) is what rose with the rest: the
-    # false note of the bundled example (42.8 there against the former gate of 21.2)
+    # the pooled reference (the Stribeck detector's statistic) is what rises with the rest: the
+    # false note of the bundled example (42.8 there against a gate of 21.2)
     p_short = friction.concentration([short], "y", TS, rest="pooled")
     p_long = friction.concentration([long_], "y", TS, rest="pooled")
     assert p_long > 2 * p_short and p_long > 21.2

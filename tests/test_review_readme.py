@@ -1,6 +1,6 @@
 """README contract review: the commands and scripts the README names do what it says.
 
-Found by a review of the README as a new user meets it.
+The README as a new user meets it.
 """
 import os
 import subprocess

@@ -143,7 +143,7 @@ def run(args):
     with naming(args.model):            # refuse a model (or block) that cannot be refitted, naming the file
         for block in split_blocks(model):
             recipe_from_model(block)
-    # an empty list ("" or ",") is refused by diagnose(); it used to mean "every detector"
+    # an empty list ("" or ",") is refused by diagnose(); it does not mean "every detector"
     dets = [d.strip() for d in args.detectors.split(",") if d.strip()] if args.detectors is not None else None
     diag = diagnose(model, train, val, detectors=dets, min_gain=args.min_gain, max_loss=args.max_loss,
                     max_steps=args.max_steps, maxiter=args.maxiter, exclude=args.exclude, workers=args.jobs,

@@ -504,7 +504,7 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     used = list(names.values()) + [var[("v0", ak[a])] for a in axes if ("v0", ak[a]) in var] + [
         v.name for v in lay.inputs if v.role == "ext"]
     lacking = [nm for nm in used if nm not in have]
-    if lacking:         # before: fmpy's "no field of name ...", blamed on a missing binary
+    if lacking:         # not fmpy's "no field of name ...", which reads as a missing binary
         raise InputError(f"the FMU has no variable(s) {lacking} of the reference model: it was not "
                          "exported from this model (pass the model it was exported from with --model)",
                          source=str(fmu_path))
