@@ -225,7 +225,7 @@ def test_misuse_returns_error_with_a_clear_message(fmus, case):
         f.setupExperiment(startTime=0.0)
         f.enterInitializationMode()
         f.exitInitializationMode()
-        # 2.5 samples end half a sample before the third (the distance was printed as negative)
+        # 2.5 samples end half a sample before the third (the distance is not printed as negative)
         want = {"step_size": f"not an integer multiple of the model sample time Ts = {m.Ts!r} s (the step would "
                              f"end {0.5 * m.Ts:.3g} s before the nearest sample time)",
                 "nan_input": "must be finite", "unknown_vr": "unknown value reference 999",

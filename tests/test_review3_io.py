@@ -224,8 +224,8 @@ def test_external_roles_of_every_identified_axis(xy_csv, siso_gui):
 
 
 def test_grid_encoder_axes_are_machine_axes():
-    """A grid encoder (KGM) on axes ('x', 'q') was accepted; align() then blamed the time
-    overlap ("no common motion") instead of the axis name."""
+    """A grid encoder (KGM) on axes ('x', 'q') is refused for its axis name; accepted, align()
+    would blame the time overlap ("no common motion")."""
     from fdid_fmi.align.readers import SensorRecord
     with pytest.raises(InputError, match="grid encoder measures machine axes"):
         SensorRecord("k", "grid_encoder", np.arange(20) * 1e-3, np.zeros((20, 2)), axes=("x", "q"))

@@ -110,7 +110,7 @@ def test_missing_compiler_is_told_by_its_type_not_by_a_column_name(unmeasured, t
     ("toml", ENTRY + "options = { max = 5 }\n"),
     ("csv", "machine,axis,traces,options\nm01,x,a.csv,max=5\n")])
 def test_abbreviated_option_is_refused(fmt, text):
-    # 'max = 5' was taken by argparse as --maxiter 5 without a word
+    # 'max = 5' is not taken by argparse as --maxiter 5 without a word
     e, = _entries(text, fmt)
     assert e.error is not None and "\n" not in e.error
     assert e.error.startswith(f"plant.{fmt}, column 'max': entry ") and "(m01/x)" in e.error

@@ -154,7 +154,7 @@ def _damaged(change):
     (lambda d: d["inputs"][0].__setitem__("gain", 2), ["column 'inputs'", "unknown key 'gain'"]),
     (lambda d: d.__setitem__("poles", "x"),
      ["column 'poles'", "poles must be a JSON array of [real, imag] pairs", "got str 'x'"]),
-    (lambda d: d.__setitem__("poles", "12"), ["column 'poles'", "got str '12'"]),   # was poles 1, 2
+    (lambda d: d.__setitem__("poles", "12"), ["column 'poles'", "got str '12'"]),   # not poles 1, 2
     (lambda d: d.__setitem__("poles", [[1.0, 2.0, 3.0]]), ["column 'poles'", "pole 1 must be"]),
     (lambda d: d["A"][0].__setitem__(0, "0.9"),
      ["column 'A'", "A must be a square matrix of numbers, got str '0.9' at A[0][0]"]),
@@ -172,7 +172,8 @@ def test_damaged_model_names_the_key(capsys, tmp_path, change, words):
 
 
 def test_string_in_a_matrix_is_not_blamed_on_stability(tmp_path):
-    """'1.0' for A[0][0] was read as 1.0 and then refused as 'the model is not stable'."""
+    """'1.0' for A[0][0] is refused as a string, not read as 1.0 and refused as 'the model is not
+    stable'."""
     with pytest.raises(InputError) as exc:
         load_model(write(tmp_path / "m.json", _damaged(lambda d: d["A"][0].__setitem__(0, "1.0"))))
     assert "stable" not in str(exc.value) and "got str '1.0'" in str(exc.value)

@@ -136,8 +136,8 @@ def test_previous_model_replaced_since_is_refused_for_that_entry(tmp_path, model
 
 # ----------------------------------------------------------------------------- 5. failing entry's trace and notes
 def test_failing_entry_names_its_trace_file_and_keeps_the_notes(csv_trace, tmp_path):
-    # a trace in ms labelled t_s failed with "column 'bounds': ..." (no file) and its note
-    # "column 't_s' steps by 1 s ... give --unit t_s=ms" was lost with the failure
+    # a trace in ms labelled t_s fails naming its file, not only "column 'bounds': ...", and its
+    # note "column 't_s' steps by 1 s ... give --unit t_s=ms" is kept with the failure
     (tmp_path / "ms.csv").write_text(_rewrite(csv_trace["lines"], lambda r: [r[0] * 1000] + r[1:]))
     res, edir = _run(tmp_path, ENTRY.replace("a.csv", "ms.csv") + MAP + FAST)
     assert res.status == "failed"

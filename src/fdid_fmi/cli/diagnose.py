@@ -99,7 +99,7 @@ def _refuse_in_sample_val(args, train_whole, val_whole, train, val):
 
 
 def _refuse_unknown_exclude(exclude, traces):
-    """Refuse an --exclude name that is a channel of none of the given traces (it was ignored)."""
+    """Refuse an --exclude name that is a channel of none of the given traces (not ignored)."""
     have = sorted({c for tr in traces for c in tr.channels})
     for name in exclude:
         if name not in have:
@@ -111,7 +111,7 @@ def run(args):
     from ..diagnose import diagnose
     from ..diagnose.reporting import diagnosis_report, fmt_params, fmu_check
     _check_outputs(args)
-    if args.val_range and not args.val:     # it was read only with --val: silently ignored
+    if args.val_range and not args.val:     # it cuts only --val: not silently ignored
         raise InputError("--val-range cuts the --val trace, and no --val is given (without --val the held-out "
                          "part of --train is chosen by the split; use --train-range to cut --train)",
                          column="--val-range")

@@ -183,7 +183,7 @@ def check_arguments(args):
         check_name(ch, "--external channel")
     for a in args.axis or []:
         check_name(a, "--axis")
-    if args.axis and len(set(args.axis)) != len(args.axis):    # was identified twice, then refused
+    if args.axis and len(set(args.axis)) != len(args.axis):    # refused before it is identified twice
         raise InputError(f"{args.axis}: give each axis once", source="--axis")
     for opt in ("real_hz", "omega_hz", "zeta"):
         for r in getattr(args, opt) or []:

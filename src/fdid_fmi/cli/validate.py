@@ -52,8 +52,8 @@ def run(args):
 
 def results_json(results):
     """JSON data of the validation of one range (its result) or several: every problem, the
-    worst FMU-vs-reference difference (null when a range's is not a finite number: max() let a
-    NaN of a later range pass, and an inf was written as the non-JSON token Infinity), ok, and
+    worst FMU-vs-reference difference (null when a range's is not a finite number: max() lets a
+    NaN of a later range pass, and an inf would be written as the non-JSON token Infinity), ok, and
     each range's result."""
     import numpy as np
 
