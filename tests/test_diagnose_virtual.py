@@ -211,8 +211,8 @@ def test_a_heavily_damped_pair_is_not_named_a_mode():
     """A mode multiplies every numerator by a quadratic (``augment._times_quadratic``), so a
     heavily damped pair can act as a Padé approximant of a dead time: on the 3-sample recording
     delay the mode's refit would be kept (190 Hz, damping 0.47; held out 11 % better than the
-    better of the null refit and one more real pole). A mode is a resonance (``base.MODE_MAX_DAMPING``: a
-    3 dB peak), so that refit is implausible and no mode is named; the order note stays. The
+    better of the null refit and one more real pole). A mode is a resonance
+    (``base.MODE_MAX_DAMPING``: a 3 dB peak), so that refit is implausible and no mode is named; the order note stays. The
     dead time itself is kept (the refined refits' free run, 3 samples)."""
     from fdid_fmi.diagnose.base import MODE_MAX_DAMPING
     d, _ = _run("delay", detectors=["mode", "delay"], max_steps=1)

@@ -209,7 +209,7 @@ def test_bad_option_values_give_one_line(capsys, files, tmp_path, opts, words):
     (["plan", "p.nc", "--model", "m.json", "--margin", "-3"], ["--margin", "[0, 1)"]),
     (["validate", "d.fmu", "t.csv", "--tolerance", "nan"], ["--tolerance", "> 0"]),
     (["align", "c.csv", "--window", "0", "-o", "a.csv"], ["--window", "> 0"]),
-    (["align", "c.csv", "--lowpass", "-3", "-o", "a.csv"], ["--lowpass", "> 0"]),     # not taken as given
+    (["align", "c.csv", "--lowpass", "-3", "-o", "a.csv"], ["--lowpass", "> 0"]),     # refused, not taken
     (["align", "c.csv", "--lowpass", "nan", "-o", "a.csv"], ["--lowpass", "> 0"]),
     # a trace whose time starts before its trigger: argparse takes '-0.5:2' for an option
     (["diagnose", "m.json", "--train", "t.csv", "--train-range", "-0.5:2"], ["--train-range", "--option=VALUE"]),

@@ -65,8 +65,8 @@ held-out criterion and the plausibility check (the breakaway excess must be posi
 ``fdid identify``'s default models the statistic separates neither plant: the virtual Stribeck
 run's chosen r2c2 reads 2.01, below the thesis-path clean maximum (2.17), and its refit is 9 %
 better held out (0.396 -> 0.360 um, kept); the virtual clean runs' default models read 1.20-1.55
-and nothing is kept on them; plant2's runs read 8-52 (all above the separating gate as well), its periodic
-run 0.39-0.46 (not tried).
+and nothing is kept on them; plant2's runs read 8-52 (all above the separating gate as well), its
+periodic run 0.39-0.46 (not tried).
 """
 from __future__ import annotations
 

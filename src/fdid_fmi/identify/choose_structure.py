@@ -33,16 +33,16 @@ recorded (``sensitivity_mm``: how far its training free run moves when its comma
 of noise, :func:`~fdid_fmi.simulate.rounding_sensitivity`); above ``SENSITIVITY_MAX`` (a tenth)
 of its own free-run RMS it is flagged "not determined" in the table, with a note. Stick/slip
 decisions amplify rounding, more with slow real poles: EMPS's r2c2 cubic (two real poles at 0.156
-and 0.159 Hz) moves 2.41 µm against its 1.46 µm RMS; measured on every candidate, every EMPS candidate with
-two complex pairs or r1c2 moves 0.35-2.4 µm, rigid and r2c1 below 1 %. Only the kept structure is
-measured: every candidate would cost too much CPU in the test suite. Such candidates are not
-excluded from the choice: with a 1 % rule EMPS would fall to rigid-noI at 2.72 µm (above the
-published physics model's 1.8 µm), and on the virtual feed-forward axis, where the sensitivity
-ranges from 1e-6 to 10 of the RMS across candidates (the chosen r2c1 quadratic 0.038), the choice
-would move to the rigid body. The tenth is a reporting
-rule, not fitted to a plant: it flags the bundled two-axis example's kept r2c2-noI hold (0.074
-µm against 0.081 µm on x, 0.117 against 0.154 µm on y) and EMPS's r2c2, not the feed-forward
-axis's r2c1. What it means for an FMU: it computes what the model computes from the input
+and 0.159 Hz) moves 2.41 µm against its 1.46 µm RMS; measured on every candidate, every EMPS
+candidate with two complex pairs or r1c2 moves 0.35-2.4 µm, rigid and r2c1 below 1 %. Only the
+kept structure is measured: measuring every candidate takes the test suite's CPU to 1147 of its
+1200 s. Such candidates are not excluded from the choice: with a 1 % rule EMPS would fall to
+rigid-noI at 2.72 µm (above the published physics model's 1.8 µm), and on the virtual
+feed-forward axis, where the sensitivity ranges from 1e-6 to 10 of the RMS across candidates
+(the chosen r2c1 quadratic 0.038), the choice would move to the rigid body. The tenth is a
+reporting rule, not fitted to a plant: it flags the bundled two-axis example's kept r2c2-noI
+hold (0.074 µm against 0.081 µm on x, 0.117 against 0.154 µm on y) and EMPS's r2c2, not the
+feed-forward axis's r2c1. What it means for an FMU: it computes what the model computes from the input
 doubles it is given (exact there); a master that rounds or interpolates its inputs differently
 from ``fdid simulate`` gets outputs that differ by up to the sensitivity (README).
 
