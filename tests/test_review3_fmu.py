@@ -139,10 +139,9 @@ def _run(s, cmd, k0=0, outs=("x_x", "x_e", "x_v", "x_dnf")):
 def test_a_step_that_makes_the_state_non_finite_is_an_error(fmus, v):
     """Commands of +-1e308 mm (finite, so SetReal accepts them) overflow the state in the second
     step. FMI 2.0.4 2.1.3 (status) / FMI 3.0 4.2.1 (fmi3DoStep, Step Mode): a step the FMU could
-    not compute must return fmi2Error / fmi3Error (earlyReturn or OK may not signal it). Before the
-    fix every doStep
-    returned OK with inf/NaN in the state, GetFMUstate gave a state that SetFMUstate refused,
-    and only a later get of an output reported it."""
+    not compute must return fmi2Error / fmi3Error (earlyReturn or OK may not signal it). Returning
+    OK with inf/NaN in the state, GetFMUstate would give a state that SetFMUstate refuses, and
+    only a later get of an output would report it."""
     with Slave(fmus, v).start() as s:
         first = s.get_state()
         failed_at = None

@@ -200,7 +200,7 @@ def _refuse_unread(args):
             flag = "--" + dest.replace("_", "-")
             raise InputError(f"{flag} is read by --method {' / '.join(methods)} only, not by "
                              f"--method {args.method}", source=flag)
-    # v_tilde options: without friction (or with v_tilde fixed) they were silently ignored
+    # v_tilde options: without friction (or with v_tilde fixed) they would be silently ignored
     # (--velocity / --ma-order stay: the diagnosis's velocity features read them from the record)
     if args.v_tilde is not None and args.v_tilde_range:
         raise InputError("--v-tilde fixes v_tilde; --v-tilde-range is the range it is searched in: "

@@ -252,7 +252,7 @@ def detect(ctx):
             free.not_checked = infeasible
         early.plot = {"shift": np.arange(kmax + 1), "objective": _finite(X), "refined_free_run_um": _finite(R)}
         if early.detected and free.detected and early.params == free.params:
-            free.recipe = None      # one shift, one trial: the early answer's (wide search), as before
+            free.recipe = None      # one shift, one trial: the early answer's (wide search)
         out += [early, free]
     return out
 

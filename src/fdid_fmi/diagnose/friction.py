@@ -29,7 +29,7 @@ Asymmetric Coulomb
     not credited to the asymmetry. Calibration with the twin (``examples/diagnose_calibrate.py --effects
     --plant2``; the statistic is the larger of the model's and the twin's |t|): the
     virtual clean runs' twins read 0.41-1.46 (the runs' maximum stays 3.11, clean_p's P-loop
-    model, which has no twin), plant2's 9 clean runs at most 1.62 as before (twins up to 1.22),
+    model, which has no twin), plant2's 9 clean runs at most 1.62 as without the twin (twins up to 1.22),
     its one-effect runs at most 1.69: the gate 4 passes no clean run on either plant.
 Backlash / lost motion (needs a tool-side channel)
     Statistic: |t| of the direction-aligned mean tool-side residual while moving, over moves:
