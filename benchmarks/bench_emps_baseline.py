@@ -1,5 +1,5 @@
 """EMPS from `qg` / `qm` only: the pole search and a few explicit structures against an
-off-the-shelf polynomial NARX (SysIdentPy) and the published physics model (issue 10).
+off-the-shelf polynomial NARX (SysIdentPy) and the published physics model.
 
 Every model is trained on DATA_EMPS with the commanded position `qg` as input and the measured
 motor position `qm` as output; nothing about the controller (law, gains, `vir`) is given to it.

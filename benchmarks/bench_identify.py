@@ -1,4 +1,4 @@
-"""Identification speed and accuracy (issue 3): wall time against samples and model order, the
+"""Identification speed and accuracy: wall time against samples and model order, the
 batched regressor engine against a straightforward DE over scipy filters, and accuracy against
 Full LS. Single core (BLAS threads pinned to 1). Writes benchmarks/results/bench_identify.json
 and prints markdown tables.

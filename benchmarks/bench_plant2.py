@@ -1,4 +1,4 @@
-"""Identification and diagnosis on a second, independently written plant (issue 10).
+"""Identification and diagnosis on a second, independently written plant.
 
 The plant (``tests/plant2``: LuGre friction, drive-clock velocity loop, continuous current loop,
 fixed-step RK4 with an exact bristle update, jerk-filter paths) shares no code with
@@ -318,7 +318,7 @@ def _f(x, fmt="{:.3f}"):
 
 def mode_in_model(d, tolerance=0.03):
     """Relative frequency error of the model's pair nearest the closed loop's mode pair, when
-    the diagnosed model's chosen structure carries one within ``tolerance`` (issue 10: 3 %)."""
+    the diagnosed model's chosen structure carries one within ``tolerance`` (3 %)."""
     pairs, truth = (d.get("model") or {}).get("complex_hz_zeta"), d.get("closed_loop_pairs")
     if d.get("truth") != "mode" or not pairs or not truth:
         return None

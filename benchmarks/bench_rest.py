@@ -1,5 +1,5 @@
 """At rest: how far the twin moves in the 5 s after a stop, against how far the plant itself does
-(issue 8: "no creep ... unless the data show it"; README, "At rest").
+(no creep unless the data show it; README, "At rest").
 
 Two plants that share no code: the virtual drive (``fdid_fmi.virtual``; stiction holds its axis,
 the measured encoder of 0.1 µm is what it shows) and plant2 (``tests/plant2``; LuGre friction

@@ -1,8 +1,8 @@
-"""Reference simulation speed: the compiled core against the former pure-Python step.
+"""Reference simulation speed: the compiled core against the pure-Python step.
 
-The free run of a DriveModel used to be a numpy/Python loop (0.1-0.2 M samples/s); it is now
-``fmu_templates/fdid_core.c`` built into the package (``fdid_fmi._kernel``). That Python loop
-survives unchanged as the test oracle (``tests/sim_oracle.py``), so both are timed side by side
+The free run of a DriveModel is ``fmu_templates/fdid_core.c`` built into the package
+(``fdid_fmi._kernel``); a numpy/Python loop runs 0.1-0.2 M samples/s. That Python loop is kept
+as the test oracle (``tests/sim_oracle.py``), so both are timed side by side
 in one run, on the same models and commands (single core, BLAS threads pinned to 1):
 
 - a 3rd-order axis with friction (the thesis's rigid-body model, hand-built, causal);
@@ -78,7 +78,7 @@ def main():
                          identical_outputs=same))
     OUT.parent.mkdir(parents=True, exist_ok=True)
     OUT.write_text(json.dumps({"rows": rows}, indent=2))
-    print("| model | states | compiled core: wall / CPU [samples/s] | former Python loop: wall / CPU "
+    print("| model | states | compiled core: wall / CPU [samples/s] | Python loop (test oracle): wall / CPU "
           "[samples/s] | ratio (wall) | same doubles |")
     print("|---|---:|---:|---:|---:|---|")
     for r in rows:

@@ -97,7 +97,7 @@ def test_reader_errors(tmp_path):
         read_grid_encoder(_write(tmp_path / "e.csv", "t_s,kgm_x_um,kgm_y_um\n0,1,1\n0.001,1,x\n"))
     with pytest.raises(InputError, match="no column 'bz'"):
         read_accelerometer(_write(tmp_path / "f.csv", "t_s,ax_g,ay_g,az_g\n" + rows), columns=["ax_g", "ay_g", "bz"])
-    # the name says mm, unit=g says acceleration: refused (was read as g, 9806.65x; from a review)
+    # the name says mm, unit=g says acceleration: refused (not read as g, 9806.65x)
     with pytest.raises(InputError, match="column name says unit 'mm' but unit=g"):
         read_accelerometer(_write(tmp_path / "g.csv", "t_s,ax_mm,ay_mm,az_mm\n" + rows), unit="g")
 
@@ -123,8 +123,8 @@ def test_cli_end_to_end(short, tmp_path, capsys):
                "--orientation", str(js), "-o", str(tmp_path / "again.csv")])
     again = capsys.readouterr().out
     assert rc == 0 and "| acc_tool | orientation | alpha |" in again and "rotation about" not in again
-    # found by a review: a calibration that does not name the sensor was silently not used, a
-    # matrix that is no rotation was quietly made one, a low-pass above a sensor's Nyquist crashed
+    # refused, not silently handled: a calibration that does not name the sensor (else unused), a
+    # matrix that is no rotation (else quietly made one), a low-pass above a sensor's Nyquist
     renamed = tmp_path / "acc2.csv"
     renamed.write_bytes(run["sensors"]["acc_tool"].read_bytes())
     bad = json.loads(js.read_text())

@@ -89,8 +89,8 @@ def test_integration_drift_matches_monte_carlo():
 
 
 def test_written_trace_keeps_late_time_stamps_apart(tmp_path):
-    """A controller trace starting at t = 123456 s with Ts = 0.4 ms: the aligned CSV wrote time
-    with 9 digits, so samples collided and the file could not be read back (found by a review)."""
+    """A controller trace starting at t = 123456 s with Ts = 0.4 ms: written with 9 digits, the
+    aligned CSV's time stamps would collide and the file could not be read back."""
     import numpy as np
     from fdid_fmi.align.writer import write_trace_csv
     from fdid_fmi.io import read_trace

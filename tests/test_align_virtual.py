@@ -1,4 +1,4 @@
-"""Alignment of raw tool-side sensor files against the virtual drive's known truth (issue 13).
+"""Alignment of raw tool-side sensor files against the virtual drive's known truth.
 
 Two runs of the ``flexible_y`` machine, written as three acquisition systems would
 (``fdid_fmi.virtual.sensors``): a calibration run moving X and Y one at a time (thesis ch. 7:

@@ -1,4 +1,4 @@
-"""Automatic structure choice (issue 10, item 1): the parsimony rule, the record, the CLI's pinning
+"""Automatic structure choice: the parsimony rule, the record, the CLI's pinning
 flags, and one identification on the virtual drive with feed-forward, where the thesis's rigid
 structure is not enough (the current loop shows in the tracking error)."""
 import json
@@ -137,16 +137,16 @@ def test_the_kept_structure_is_refitted_in_its_other_forms():
 
 
 def test_a_structure_decided_by_rounding_is_flagged_and_noted():
-    """Session 35 (helper-55): EMPS's default r2c2 cubic moved 2.41 µm under 1e-12 mm of command
-    noise against its 1.46 µm RMS, and its FMU failed fdid validate at 5.9e-8 mm without a word
-    from identify. Each candidate's sensitivity is recorded, flagged above 1 % of its RMS, and a
-    kept structure that is flagged gets a note; validate's message says what it means."""
+    """EMPS's default r2c2 cubic moves 2.41 µm under 1e-12 mm of command noise against its 1.46 µm
+    RMS, and its FMU fails fdid validate at 5.9e-8 mm: identify must say so. Each candidate's
+    sensitivity is recorded, flagged above ``SENSITIVITY_MAX`` of its RMS, and a kept structure
+    that is flagged gets a note; validate's message says what it means."""
     from fdid_fmi.identify.choose_structure import CandidateScore, SENSITIVITY_MAX
     from fdid_fmi.fmu.validate import _reference_problem
     rigid = CandidateScore("rigid-noI", 8, "cubic", 2.715e-3, 1.0, sensitivity_mm=1e-9)
     r2c2 = CandidateScore("r2c2", 17, "cubic", 1.462e-3, 1.0, sensitivity_mm=2.41e-3, chosen=True)
     edge = CandidateScore("r2c1", 11, "cubic", 1e-3, 1.0, sensitivity_mm=SENSITIVITY_MAX * 1e-3)
-    old = CandidateScore("r1c2", 14, "cubic", 1e-3, 1.0)           # a record before session 35
+    old = CandidateScore("r1c2", 14, "cubic", 1e-3, 1.0)           # a record without a sensitivity
     assert rigid.determined and edge.determined and old.determined and not r2c2.determined
     assert CandidateScore.from_dict(r2c2.to_dict()).sensitivity_mm == 2.41e-3
     lines = StructureChoice("x", "r2c2", "cubic", [rigid, r2c2, edge, old], 0.05, 1, 1.0).table()

@@ -1,4 +1,4 @@
-"""``fdid diagnose`` takes every model ``fdid identify`` writes (issue 10, item 3).
+"""``fdid diagnose`` takes every model ``fdid identify`` writes.
 
 * A two-axis trace gives a combined per-axis model (``DriveModel.combine``); diagnosis splits it
   into its blocks, diagnoses each on its own axis and combines the results again.

@@ -36,7 +36,7 @@ def test_emps_pulses_channel_found_and_added(emps_model, shared_data, tmp_path, 
     rc = main(["diagnose", str(emps_model), "--train", str(pulses), "--json", str(out_json),
                "--report", str(out_html), "-o", str(out_model), "--fmu"])
     assert rc == 0
-    assert not list(scratch.iterdir())      # the FMUs' folder is removed (one was left per run)
+    assert not list(scratch.iterdir())      # the FMUs' folder is removed (none is left per run)
     d = json.loads(out_json.read_text())
     assert [(e["kind"], e["channel"]) for e in d["effects_added"]] == [("extra_input", "pulses_N")]
     before, after = d["before"]["val"]["x"], d["after"]["val"]["x"]

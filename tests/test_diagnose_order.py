@@ -1,4 +1,4 @@
-"""The order check of the diagnosis (issue 10): one more real pole before an effect is named.
+"""The order check of the diagnosis: one more real pole before an effect is named.
 
 A drive whose closed loop has four poles, identified with the three-pole rigid structure: the
 diagnosis must say the order is too low. (Where it must not: the clean virtual-drive runs of
@@ -64,7 +64,7 @@ def test_one_pole_short_model_gets_the_order_note():
         warnings.simplefilter("ignore")
         (note,) = [n for n in diagnose(chosen, tr, va, maxiter=10).notes if n.kind == NoteKind.ORDER_TOO_LOW]
     assert "chosen on the training data" in note.text and "default structure choice" not in note.text
-    # ... and a model diagnosis wrote from it still knows (helper-39: it was lost on the refit)
+    # ... and a model diagnosis wrote from it still knows (the refit must keep it)
     r = ag.recipe_from_model(chosen)
     refit = ag.fit(r, tr, search="local", maxiter=2, refine=False)
     assert r.structure_chosen and ag.recipe_from_model(refit).structure_chosen

@@ -289,7 +289,7 @@ def test_the_default_models_dead_time_is_named_by_the_refined_refits_free_run():
     shift, no shift included, so that statistic names nothing; the refined refits' free run
     falls by 13 % at 3 samples (0.254 -> 0.221 um), above the structure choice's 5 % margin, and
     the trial, the same local refit, predicts the held-out reversals better (measured 0.323 ->
-    0.258 um). Session 34-36: missed on this path. ``max_delay`` 4 keeps the test short (the
+    0.258 um). ``max_delay`` 4 keeps the test short (the
     profile's minimum at 3 is not on the range's edge)."""
     m, tr, va = _default_model("delay")
     with warnings.catch_warnings():
@@ -303,7 +303,7 @@ def test_the_default_models_dead_time_is_named_by_the_refined_refits_free_run():
 
 def test_on_a_clean_default_model_no_shift_wins_the_parsimony_margin():
     """plant2 ``clean_rigid`` on its default path's model (rigid cubic): no command shift lowers
-    the refined refits' free run below the given model's (measured: statistic 1.0; session 35:
+    the refined refits' free run below the given model's (measured: statistic 1.0;
     1.0 on seeds 0-2, the virtual drive's clean runs 1.000-1.006)."""
     from fdid_fmi.diagnose import delay
     from fdid_fmi.diagnose.base import Context

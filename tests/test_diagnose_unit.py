@@ -197,8 +197,8 @@ def test_early_response_chi2_sees_an_answer_in_the_first_lags_only():
 
 def test_early_response_chi2_keeps_its_accuracy_on_a_jerk_limited_command_with_dwells():
     """Jerk-limited moves with 0.5 s pauses at 0.5 ms (62 % of the command's increments exactly 0)
-    make the FIR's regressors ill-conditioned (cond ~4e7): the normal equations lost up to 10x on
-    a null chi-square there (1.0 against 11.2; helper-40 first saw it). Against a dense QR."""
+    make the FIR's regressors ill-conditioned (cond ~4e7): the normal equations lose up to 10x on
+    a null chi-square there (1.0 against 11.2). Against a dense QR."""
     from numpy.lib.stride_tricks import sliding_window_view
     from fdid_fmi.diagnose.delay import EarlyResponse, fir_length
     from fdid_fmi.virtual.trajectories import linear_moves
@@ -244,8 +244,8 @@ def test_report_is_self_contained_html_with_figure_data(tmp_path):
 
 
 def test_report_data_survives_hostile_text_and_never_writes_through_a_symlink(tmp_path):
-    """Found by a review: a meta value '<!--<script>' left the embedded JSON unclosed, and
-    ``Report.write`` followed a symlink at the output path onto the file it points to."""
+    """A meta value '<!--<script>' does not leave the embedded JSON unclosed, and
+    ``Report.write`` does not follow a symlink at the output path onto the file it points to."""
     evil = "run <!--<script> A </script>"
     rep = Report("t", meta={"source": evil})
     text = rep.html()

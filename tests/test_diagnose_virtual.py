@@ -75,8 +75,8 @@ def test_stribeck():
 def test_stribeck_on_the_default_structure():
     """``fdid identify``'s default choice on this trace is r2c2 (cubic): its second pair takes
     part of the breakaway, and the residual's concentration at motion ends (2.01) falls below
-    the largest clean thesis-path value (2.17). The Stribeck gate is a floor (1.0) since session
-    28, so the refit is tried and the held-out criterion keeps it (measured: 0.396 -> 0.360 um)."""
+    the largest clean thesis-path value (2.17). The Stribeck gate is a floor (1.0), so
+    the refit is tried and the held-out criterion keeps it (measured: 0.396 -> 0.360 um)."""
     from fdid_fmi.diagnose import friction
     tr, va = scenario("stribeck")
     m = _default_candidate(tr, "r2c2", "cubic")
@@ -178,7 +178,7 @@ def test_dead_time_statistics_separate_a_delay_from_its_clean_twin(name, delayed
     the refined refits' free run, with the command shifted) on the thesis-path model: the
     3-sample recording delay passes both gates, the same soft loop on the same kind of moves
     without it passes neither. On this 3-pole model the early answer's shift loses to one more
-    pole held out (the order check); the free run's, 3 samples, is kept (README, session 37)."""
+    pole held out (the order check); the free run's, 3 samples, is kept (README)."""
     from fdid_fmi.diagnose import augment as ag, delay
     from fdid_fmi.diagnose.base import Context
     from fdid_fmi.diagnose.residuals import residuals
@@ -210,10 +210,10 @@ def test_dead_time_statistics_separate_a_delay_from_its_clean_twin(name, delayed
 def test_a_heavily_damped_pair_is_not_named_a_mode():
     """A mode multiplies every numerator by a quadratic (``augment._times_quadratic``), so a
     heavily damped pair can act as a Padé approximant of a dead time: on the 3-sample recording
-    delay the mode's refit was kept (190 Hz, damping 0.47; held out 11 % better than the better of
-    the null refit and one more real pole). A mode is a resonance (``base.MODE_MAX_DAMPING``: a
-    3 dB peak), so that refit is implausible and no mode is named; the order note stays. Since
-    session 37 the dead time itself is kept (the refined refits' free run, 3 samples)."""
+    delay the mode's refit would be kept (190 Hz, damping 0.47; held out 11 % better than the
+    better of the null refit and one more real pole). A mode is a resonance
+    (``base.MODE_MAX_DAMPING``: a 3 dB peak), so that refit is implausible and no mode is named; the order note stays. The
+    dead time itself is kept (the refined refits' free run, 3 samples)."""
     from fdid_fmi.diagnose.base import MODE_MAX_DAMPING
     d, _ = _run("delay", detectors=["mode", "delay"], max_steps=1)
     assert [(e["kind"], e.get("samples")) for e in d.effects_added] == [("delay", 3)]

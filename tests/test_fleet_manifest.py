@@ -110,7 +110,7 @@ def test_manifest_file_errors(tmp_path):
     ('[defaults]\ncolour="red"\n[[entry]]\nmachine="a"\naxis="x"\ntraces=["1.csv"]\n', ["[defaults]", "colour"]),
 ])
 def test_tables_that_are_not_tables(text, words):
-    """A CSV-style string where TOML wants a table: one line naming it (was a TypeError), in an
+    """A CSV-style string where TOML wants a table: one line naming it (not a TypeError), in an
     entry (that entry fails) or in [defaults] (the manifest is refused)."""
     try:
         m = parse_manifest_text(text, "toml")

@@ -196,8 +196,8 @@ def test_local_pool_killed_worker(fleet):
 
 def test_ctrl_c_stops_the_local_pool_now(fleet):
     """Ctrl-C (SIGINT to the command's process group, as a terminal sends it) during the first
-    entry: the command stops within seconds and no entry is finished after it. Before (helper-56):
-    the pool's shutdown waited for the running entry and ran the one queued behind it in full."""
+    entry: the command stops within seconds and no entry is finished after it (a plain shutdown
+    of the pool waits for the running entry and runs the one queued behind it in full)."""
     import subprocess
     import sys
     out = fleet["root"] / "interrupted"
@@ -216,6 +216,6 @@ def test_ctrl_c_stops_the_local_pool_now(fleet):
     stopped = time.time() - t0
     time.sleep(3)                   # nothing goes on behind the command's back
     assert p.returncode == 130 and "interrupted" in err, err
-    assert stopped < 5, stopped     # measured: 0.3 s (before: 6-9 s, an entry more run in full)
+    assert stopped < 5, stopped     # measured: 0.3 s (6-9 s with an entry more run in full)
     assert not list((out / "entries").glob("*/entry.json"))
     assert not _no_temp_files(out)

@@ -189,7 +189,7 @@ def test_a_drifting_master_clock_is_named_not_the_step_size(fmus):
     """A master that keeps its clock by adding its steps (t += h) from a wall-clock start time
     drifts off the sample grid by their rounding (ulp(1.7e9 s) = 2.4e-7 s) and is refused after
     about 140 steps of h = Ts = 1 ms; the message must say that its time drifted, not that h = Ts is
-    not a multiple of Ts (a review's master, session 34)."""
+    not a multiple of Ts."""
     m, fmu = fmus["siso"]
     r, msgs = _logged_runner(fmu)
     f = r.fmu
@@ -225,7 +225,7 @@ def test_misuse_returns_error_with_a_clear_message(fmus, case):
         f.setupExperiment(startTime=0.0)
         f.enterInitializationMode()
         f.exitInitializationMode()
-        # 2.5 samples end half a sample before the third (the distance was printed as negative)
+        # 2.5 samples end half a sample before the third (the distance is not printed as negative)
         want = {"step_size": f"not an integer multiple of the model sample time Ts = {m.Ts!r} s (the step would "
                              f"end {0.5 * m.Ts:.3g} s before the nearest sample time)",
                 "nan_input": "must be finite", "unknown_vr": "unknown value reference 999",

@@ -1,4 +1,4 @@
-"""Issue 4 acceptance with IDENTIFIED models: a flexible-mode model and a coupled two-axis model
+"""FMUs of IDENTIFIED models: a flexible-mode model and a coupled two-axis model
 (the SISO EMPS model is in test_fmu_validate.py) exported as FMUs, validated through fmpy on a
 held-out trace, equal to the reference simulator and to a C host run, and as good against the
 measurement as the model itself."""

@@ -38,7 +38,7 @@ def _start(r, start=0.0, stop=None):
 @pytest.mark.parametrize("version", [2, 3])
 def test_long_runs_keep_stepping(siso, version):
     """fmpy computes each step as the difference of two grid times; at t = 8192 s their rounding
-    (~1e-12 s) exceeded the former tolerance relative to h and the step was refused. Run the
+    (~1e-12 s) must not exceed the FMU's tolerance relative to h, or the step is refused. Run the
     way masters run it (fmpy.simulate_fmu with an input table, outputs read after doStep): the
     positions equal the in-process prediction at the same time stamps (measured: 0 mm)."""
     m, fmus = siso

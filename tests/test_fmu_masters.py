@@ -1,4 +1,4 @@
-"""Issue 8 acceptance: identified twins run the way co-simulation masters run them.
+"""Identified twins run the way co-simulation masters run them.
 
 Virtual drive without and with feed-forward, plant2's Stribeck axis with the play friction law
 and its breakaway term (two play states run in the FMU) and the real EMPS drive: the pole-search model is

@@ -96,7 +96,7 @@ os._exit(0)
 
 
 def test_python_backend_refuses_a_v_tilde_the_friction_solve_cannot_resolve(tmp_path, capfd):
-    # as the C FMU (test_review6_model_json): checked where the solve runs; pythonfmu reports the
+    # as the C FMU does: checked where the solve runs; pythonfmu reports the
     # refusal as fmi2Fatal (any exception of the slave), the C FMU as fmi2Error
     from fmpy import simulate_fmu
     from fmpy.fmi1 import FMICallException

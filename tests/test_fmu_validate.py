@@ -67,8 +67,8 @@ def test_validate_detects_a_different_reference(case):
 
 
 def test_a_reference_model_of_another_sample_time_is_named_not_the_trace(case):
-    """helper-59 (session 36): a wrong --model was refused as "the trace is sampled at 0.0006 s but
-    the model at 0.001 s", blaming the trace."""
+    """A wrong --model is named, not the trace ("the trace is sampled at 0.0006 s but the model at
+    0.001 s" would blame the trace)."""
     import dataclasses
     other = dataclasses.replace(case["model"], Ts=2 * case["model"].Ts)
     other.save(case["dir"] / "other.json")

@@ -209,7 +209,7 @@ def test_bad_option_values_give_one_line(capsys, files, tmp_path, opts, words):
     (["plan", "p.nc", "--model", "m.json", "--margin", "-3"], ["--margin", "[0, 1)"]),
     (["validate", "d.fmu", "t.csv", "--tolerance", "nan"], ["--tolerance", "> 0"]),
     (["align", "c.csv", "--window", "0", "-o", "a.csv"], ["--window", "> 0"]),
-    (["align", "c.csv", "--lowpass", "-3", "-o", "a.csv"], ["--lowpass", "> 0"]),     # helper-39: taken
+    (["align", "c.csv", "--lowpass", "-3", "-o", "a.csv"], ["--lowpass", "> 0"]),     # refused, not taken
     (["align", "c.csv", "--lowpass", "nan", "-o", "a.csv"], ["--lowpass", "> 0"]),
     # a trace whose time starts before its trigger: argparse takes '-0.5:2' for an option
     (["diagnose", "m.json", "--train", "t.csv", "--train-range", "-0.5:2"], ["--train-range", "--option=VALUE"]),
@@ -365,7 +365,7 @@ def test_search_refuses_when_no_objective_is_finite():
 def test_plan_never_writes_over_its_inputs(capsys, tmp_path, extra, word):
     """fdid plan's outputs are checked against every input (the program, the twin, --limits-from,
     --commands) and against each other before any work: a trace given as --limits-from and --csv
-    was overwritten by the prediction (found by a review)."""
+    would be overwritten by the prediction."""
     tr = tmp_path / "tr.csv"
     tr.write_text("t_s,x_cmd_mm,x_mm\n0,0,0\n0.001,1,1\n")
     before = tr.read_bytes()

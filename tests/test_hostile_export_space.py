@@ -57,7 +57,7 @@ def test_file_size_limit_while_copying_the_sources(tmp_path, built):
     r = _export_limited(model, out, 1024)     # smaller than any template source
     line = one_line(r.returncode, r.stderr, "cannot write the FMU's build files",
                     "file-size limit (ulimit -f: 1024 bytes)", "raise the limit")
-    assert "fmu_templates" not in line       # before: the template being copied was blamed
+    assert "fmu_templates" not in line       # not the template being copied
     assert not out.exists() and _left(tmp_path) == []
 
 
@@ -71,7 +71,7 @@ def test_file_size_limit_while_compiling(tmp_path, built):
     r = _export_limited(model, out, largest_source + 1024)
     line = one_line(r.returncode, r.stderr, "cannot write the compiled FMU binary (gcc)",
                     f"file-size limit (ulimit -f: {largest_source + 1024} bytes)")
-    assert "-O2" not in line and "internal compiler error" not in line    # before: gcc's raw lines
+    assert "-O2" not in line and "internal compiler error" not in line    # not gcc's raw lines
     assert not out.exists() and _left(tmp_path) == []
 
 

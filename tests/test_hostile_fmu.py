@@ -209,7 +209,7 @@ def test_control_characters_in_text_are_refused(field, value):
                                                ("Ts", True, "Ts must be a number"),
                                                ("Ts", "0.001", "Ts must be a number")])
 def test_header_numbers_are_numbers(field, value, words):
-    """JSON true read as 1 (Ts = 1 s), format version 0 or True accepted (found by a review)."""
+    """JSON true read as 1 (Ts = 1 s), format version 0 or True: refused."""
     d = model_dict()
     d[field] = value
     with pytest.raises(InputError, match=words):
@@ -218,8 +218,8 @@ def test_header_numbers_are_numbers(field, value, words):
 
 @pytest.mark.parametrize("axis", ["x", None])
 def test_one_command_per_axis(axis):
-    """A second command on axis x (never fed: the simulation ignored it) or a command without an
-    axis (exported as 'None_x_cmd') is refused when the model is built (found by a review)."""
+    """A second command on axis x (never fed: the simulation would ignore it) or a command without an
+    axis (exported as 'None_x_cmd') is refused when the model is built."""
     d = model_dict()
     d["inputs"][2].update(kind="command", axis=axis, unit="mm")
     with pytest.raises(InputError, match="exactly one command input"):

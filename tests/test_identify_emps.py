@@ -3,7 +3,7 @@
 The pole search is told nothing about the controller: it is trained from `qg` and `qm` alone.
 The published physics model reaches ~1.8 / 2.2 um RMS (train / test) but needs the controller
 law and gains, and its test figure includes the force pulses, which a model driven only by `qg`
-cannot know (issue 5 adds them).
+cannot know (the ``external`` inputs add them).
 """
 import numpy as np
 import pytest

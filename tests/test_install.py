@@ -1,4 +1,4 @@
-"""A plain, non-editable install works outside the source tree (issue 8): the wheel carries the
+"""A plain, non-editable install works outside the source tree: the wheel carries the
 compiled simulation core and the C templates, so `fdid export` and `fdid demo` need no
 environment variable and no checkout."""
 import os

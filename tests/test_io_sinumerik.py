@@ -148,7 +148,7 @@ def test_sinumerik_errors(tmp_path, sat):
      ["node id 61", "twice"]),
 ])
 def test_a_damaged_export_is_one_error_line(xml, tmp_path, edit, words):
-    """Damage an export the reader does not expect (found by a review: each one escaped as a
+    """Damage an export the reader does not expect (each one would escape as a
     ValueError, AttributeError or LookupError): one InputError naming what is wrong."""
     text = xml.read_bytes().decode("latin-1")
     damaged = edit(text)
@@ -164,8 +164,8 @@ def test_a_damaged_export_is_one_error_line(xml, tmp_path, edit, words):
 
 
 def test_identify_on_the_frequency_response_trace_says_what_it_is(shared_data, capsys, tmp_path):
-    """helper-55: 'no axis with both cmd and act channels; use --map', and --map was then refused
-    for a SINUMERIK XML: the message now says what the file is and what reads it."""
+    """Not 'no axis with both cmd and act channels; use --map' (--map is refused for a SINUMERIK
+    XML): the message says what the file is and what reads it."""
     from cli_support import one_line, run_cli
     xml = shared_data / "sinumerik_trace" / "freq_trace.XML"
     code, _, err = run_cli(capsys, "identify", xml, "-o", tmp_path / "m.json")

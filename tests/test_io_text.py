@@ -336,8 +336,8 @@ def test_axis_last_names_are_recognised(tmp_path):
 
 
 def test_latin1_comment_with_next_line_character_is_still_a_comment(tmp_path):
-    """'…' in Windows-1252 is byte 0x85, which Latin-1 decodes to U+0085; str.splitlines split
-    the comment there, made its tail a 'header' and refused the file (found by a review)."""
+    """'…' in Windows-1252 is byte 0x85, which Latin-1 decodes to U+0085; str.splitlines splits
+    the comment there, and its tail must not become a 'header' that refuses the file."""
     p = tmp_path / "cp1252.csv"
     p.write_bytes(b"# Messung\x85 Achse X\n" + ("t_s,x_cmd_mm,x_mm\n" + _rows()).encode("latin-1"))
     tr = read_trace(p)
@@ -345,8 +345,8 @@ def test_latin1_comment_with_next_line_character_is_still_a_comment(tmp_path):
 
 
 def test_gui_layout_refuses_a_header_with_other_units(tmp_path):
-    """--layout siso-gui reads s and mm; a header 't_ms,x_um,e_um' was skipped and the data read
-    as s and mm (Ts = 1 s, positions 1000x too large; found by a review)."""
+    """--layout siso-gui reads s and mm; a header 't_ms,x_um,e_um' is refused, not skipped
+    with the data read as s and mm (Ts = 1 s, positions 1000x too large)."""
     p = tmp_path / "gui.csv"
     p.write_text("t_ms,x_um,e_um\n" + "\n".join(f"{k},{k * 10},{1}" for k in range(100)))
     with pytest.raises(InputError, match="siso-gui.*'ms'"):

@@ -1,4 +1,4 @@
-"""Pole search on the virtual feed drive (issue 3 acceptance): known truth, unseen trajectories.
+"""Pole search on the virtual feed drive: known truth, unseen trajectories.
 
 Training: varying-distance linear moves of one axis (the thesis's identification G-code).
 Validation: a diamond and a circle on the two-axis machine, and another move sequence.

@@ -1,4 +1,4 @@
-"""At rest, the twin settles as the plant does (issue 8: "no creep ... unless the data show it").
+"""At rest, the twin settles as the plant does: no creep unless the data show it.
 
 The independent plant (tests/plant2: LuGre friction with presliding, a velocity PI loop) is not at
 rest when its command stops: its true motor position settles by ~0.4 µm over the next seconds

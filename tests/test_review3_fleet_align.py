@@ -1,5 +1,5 @@
-"""Review 3, the fleet and alignment layers: hostile manifests, the rerun cache, the sensor readers
-and the align CLI. Each test fails without the fix it guards (checked by reverting the fix)."""
+"""The fleet and alignment layers: hostile manifests, the rerun cache, the sensor readers and the
+align CLI. Each test fails without the code it guards."""
 import ast
 import json
 from pathlib import Path
@@ -21,13 +21,13 @@ def _one(text, fmt="toml"):
 # ----------------------------------------------------------------------------- fleet manifests
 @pytest.mark.parametrize("thresholds", ["3", '"ab"', "[1, 2]"])
 def test_thresholds_not_a_table_is_one_input_error(thresholds):
-    # was TypeError 'int' object is not iterable / ValueError from dict("ab")
+    # not TypeError 'int' object is not iterable / ValueError from dict("ab")
     with pytest.raises(InputError, match=r"\[thresholds\] must be a table"):
         _one(f"thresholds = {thresholds}\n" + ENTRY)
 
 
 def test_csv_row_with_more_fields_than_the_header_is_that_entry_only():
-    # was AttributeError: 'list' object has no attribute 'strip' (DictReader's restkey)
+    # not AttributeError: 'list' object has no attribute 'strip' (DictReader's restkey)
     entries = _one("machine,axis,traces\nm01,x,a.csv,extra\nm01,y,b.csv\n", "csv")
     assert "4 fields" in entries[0].error and "header 3" in entries[0].error
     assert entries[1].error is None and entries[1].key == "m01/y"
@@ -49,7 +49,7 @@ def test_csv_key_value_given_twice_is_refused():
     (".csv", "\ufeffmachine,axis,traces\nm01,x,a.csv\n"),
     (".toml", "\ufeff" + ENTRY)])
 def test_manifest_with_a_byte_order_mark_is_read(tmp_path, suffix, text):
-    # a spreadsheet's "CSV UTF-8" starts with a BOM: was refused as having no machine/axis header
+    # a spreadsheet's "CSV UTF-8" starts with a BOM, not refused as having no machine/axis header
     p = tmp_path / f"plant{suffix}"
     p.write_bytes(text.encode("utf-8"))
     e, = load_manifest(p).entries
@@ -93,8 +93,8 @@ def test_option_list_for_a_single_valued_option():
 @pytest.mark.parametrize("opt,words", [('{ axis = "y" }', "entry's axis"),
                                        ('{ output = "m.json" }', "cannot be set")])
 def test_options_the_fleet_cannot_honour(opt, words):
-    # axis = "y" on entry m01/x identified y and failed with "KeyError: 'x' (work.py:200)",
-    # retried every run; output was accepted and ignored
+    # refused at load: axis = "y" on entry m01/x would identify y and fail with "KeyError: 'x'",
+    # retried every run; output would be accepted and ignored
     e, = _one(ENTRY + f"options = {opt}\n")
     assert e.error and words in e.error
     ok, = _one(ENTRY + 'options = { axis = "x" }\n')
@@ -117,7 +117,7 @@ def test_previous_fleet_result_of_another_shape_is_one_input_error(tmp_path):
         d = tmp_path / f"prev{i}"
         d.mkdir()
         (d / "fleet.json").write_text(json.dumps(doc))
-        with pytest.raises(InputError, match="fleet result"):      # was KeyError / TypeError / AttributeError
+        with pytest.raises(InputError, match="fleet result"):      # not KeyError / TypeError / AttributeError
             load_fleet_result(d)
 
 
@@ -318,7 +318,7 @@ def test_sensor_setting_given_twice_is_refused():
 
 
 def test_sensor_file_in_a_folder_with_an_equals_sign(tmp_path):
-    # .../date=2026-11-23/acc.csv was taken for a setting: "unknown setting '.../date'"
+    # .../date=2026-11-23/acc.csv is a file, not a setting ("unknown setting '.../date'")
     from fdid_fmi.cli.align import parse_sensor
     d = tmp_path / "date=2026-11-23"
     d.mkdir()
@@ -339,7 +339,7 @@ def test_unknown_uncertainty_is_printed_as_unknown():
 
 
 def test_sensor_column_given_twice_is_refused(tmp_path):
-    # cols=ax,ax,az (or a name and its number) was read, and align() then blamed the time
+    # cols=ax,ax,az (or a name and its number) is refused; read, align() would blame the time
     # overlap ("no common motion ... the records do not overlap in time")
     from fdid_fmi.align import read_accelerometer
     t = np.arange(40) * 2e-4
@@ -381,7 +381,7 @@ def test_virtual_fleet_needs_a_machine(tmp_path, n):
 
 @pytest.mark.parametrize("address", ["foo", "xyz://host:1", ""])
 def test_malformed_scheduler_address_is_one_input_error(tmp_path, address):
-    # was "internal error: ValueError: missing port number in address 'foo' -- this is a bug", exit 3
+    # not "internal error: ValueError: missing port number in address 'foo' -- this is a bug", exit 3
     pytest.importorskip("distributed")
     from fdid_fmi.fleet import run_fleet
     man = tmp_path / "plant.toml"
@@ -429,9 +429,9 @@ def test_sensor_unit_off_by_a_factor_with_a_calibration(raw_run, tmp_path):
 
 
 def test_fleet_table_keeps_a_figure_that_was_not_computed_and_writes_strict_json(tmp_path):
-    # max() let a NaN figure vanish when it came after a number (the table said 3 um while the
-    # entry's validation had a trace without a figure), and a diverged FMU's inf was written as the
-    # non-JSON token Infinity
+    # max() lets a NaN figure vanish when it comes after a number (the table would say 3 um while
+    # the entry's validation has a trace without a figure), and a diverged FMU's inf must not be
+    # written as the non-JSON token Infinity
     from fdid_fmi.fleet.report import write_fleet_report
     from fdid_fmi.fleet.runner import FleetResult
     from fdid_fmi.fleet.work import EntryResult, ValidationFigures
@@ -450,7 +450,7 @@ def test_fleet_table_keeps_a_figure_that_was_not_computed_and_writes_strict_json
 
 
 def test_entry_files_are_strict_json(tmp_path):
-    # validation.json / diagnosis.json were written with NaN tokens for a figure not computed
+    # validation.json / diagnosis.json have no NaN tokens for a figure not computed
     from fdid_fmi.fleet.work import ValidationFigures, _save_json
     from dataclasses import asdict
     p = tmp_path / "validation.json"
@@ -463,7 +463,7 @@ def test_entry_files_are_strict_json(tmp_path):
 
 
 def test_orientation_without_an_accelerometer_is_refused(raw_run, tmp_path, capsys):
-    # --orientation with only --kgm was read and ignored (the run "succeeded")
+    # --orientation with only --kgm is refused, not read and ignored (the run "succeeding")
     from fdid_fmi.cli import main
     calib = tmp_path / "calib.json"
     calib.write_text(json.dumps({"format": "fdid-fmi alignment", "sensors": [
@@ -493,8 +493,8 @@ def test_missing_compiler_on_a_worker_is_retried_not_kept(built_entry, tmp_path,
 
 
 def test_trace_notes_are_kept_in_the_entry_not_printed_by_the_worker(tmp_path, capsys):
-    # session 35: the readers' notes (here: columns that state no unit, read as mm) were printed
-    # by the worker (interleaved in the console, or lost in a Dask worker's log) and not kept
+    # the readers' notes (here: columns that state no unit, read as mm) are kept with the entry,
+    # not printed by the worker (interleaved in the console, or lost in a Dask worker's log)
     from fdid_fmi.fleet.manifest import entry_hash, software_version
     from fdid_fmi.fleet.runner import FleetResult, table_rows
     from fdid_fmi.fleet.virtual import VirtualAxis, axis_trace, write_trace_csv
@@ -513,7 +513,7 @@ def test_trace_notes_are_kept_in_the_entry_not_printed_by_the_worker(tmp_path, c
     assert res.ok, res.error
     assert "note:" not in capsys.readouterr().out
     assert res.notes == ["x.csv: columns x_cmd (mm), x (mm) state no unit and are read in these units; if one "
-                         "is in another, name it like x_um or give units = { COLUMN = \"UNIT\" }"]   # review 7: manifest words
+                         "is in another, name it like x_um or give units = { COLUMN = \"UNIT\" }"]   # in the manifest's words
     assert EntryResult.from_dict(res.to_dict()).notes == res.notes
     fr = FleetResult(out=str(tmp_path / "out"), manifest="plant.toml", previous=None, executor="test", workers=1,
                      entries=[res])

@@ -1,19 +1,19 @@
-"""Review 3 of the FMU's C plumbing against FMI 2.0 / 3.0 Co-Simulation (fmi2Functions.c,
+"""The FMU's C plumbing against FMI 2.0 / 3.0 Co-Simulation (fmi2Functions.c,
 fmi3Functions.c, fdid_instance.c), driven through fmpy's low-level FMU2Slave / FMU3Slave and raw
 ctypes calls, on both FMI versions of one hand-built SISO model (built once per module).
 
-Defects found and fixed (each test below failed on the templates before the fix):
-  * a doStep that left the model state infinite / NaN returned OK (the error came first at a
-    later get, never for a master that reads other outputs or none), and GetFMUstate then handed
-    out a state that SetFMUstate refused;
-  * '#' in a logged message (from a master's string: GUID, log category) was not written '##',
-    so a master that expands variable references (#r12# / #12#) misread it;
+What the tests below guard (each fails on templates without it):
+  * a doStep that leaves the model state infinite / NaN does not return OK (else the error comes
+    first at a later get, never for a master that reads other outputs or none), and GetFMUstate
+    hands out no state that SetFMUstate refuses;
+  * '#' in a logged message (from a master's string: GUID, log category) is written '##', so a
+    master that expands variable references (#r12# / #12#) does not misread it;
   * a deserialized FMU state with inconsistent step flags (steps counted but no doStep taken;
-    initial state to be recomputed after a doStep) was accepted, and the FMU time then jumped
-    back to the start time at the next step while the master's time ran on.
-  * SetFMUstate accepted an FMU state of another fdid FMU whose states have the same size (same
-    model structure, other parameters): the FMU silently went on with the other model's state.
-The other tests pin down behaviour the review checked and found correct.
+    initial state to be recomputed after a doStep) is refused; accepted, the FMU time would jump
+    back to the start time at the next step while the master's time runs on;
+  * SetFMUstate refuses an FMU state of another fdid FMU whose states have the same size (same
+    model structure, other parameters): the FMU would silently go on with the other model's state.
+The other tests pin down behaviour that is correct as it is.
 """
 import ctypes
 import re
@@ -42,7 +42,7 @@ OFF_STEPS, OFF_INIT_DIRTY, OFF_STARTED = GUID + 16, GUID + 24, GUID + 32
 
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory):
-    d = tmp_path_factory.mktemp("review3")
+    d = tmp_path_factory.mktemp("fmu_plumbing")
     out = {}
     for v in (2, 3):
         path = export_fmu(fs.siso_model(), d / f"r{v}.fmu", fmi_version=v)
@@ -53,7 +53,7 @@ def fmus(tmp_path_factory):
 @pytest.fixture(scope="module")
 def other_fmus(tmp_path_factory):
     """FMUs of another model with the same structure (so FMU states of the same size)."""
-    d = tmp_path_factory.mktemp("review3_other")
+    d = tmp_path_factory.mktemp("fmu_plumbing_other")
     out = {}
     for v in (2, 3):
         path = export_fmu(fs.siso_model(level=2.0, zeta=0.5), d / f"o{v}.fmu", fmi_version=v)
@@ -139,10 +139,9 @@ def _run(s, cmd, k0=0, outs=("x_x", "x_e", "x_v", "x_dnf")):
 def test_a_step_that_makes_the_state_non_finite_is_an_error(fmus, v):
     """Commands of +-1e308 mm (finite, so SetReal accepts them) overflow the state in the second
     step. FMI 2.0.4 2.1.3 (status) / FMI 3.0 4.2.1 (fmi3DoStep, Step Mode): a step the FMU could
-    not compute must return fmi2Error / fmi3Error (earlyReturn or OK may not signal it). Before the
-    fix every doStep
-    returned OK with inf/NaN in the state, GetFMUstate gave a state that SetFMUstate refused,
-    and only a later get of an output reported it."""
+    not compute must return fmi2Error / fmi3Error (earlyReturn or OK may not signal it). Returning
+    OK with inf/NaN in the state, GetFMUstate would give a state that SetFMUstate refuses, and
+    only a later get of an output would report it."""
     with Slave(fmus, v).start() as s:
         first = s.get_state()
         failed_at = None
@@ -198,8 +197,8 @@ def _flags(b):
 def test_a_state_with_inconsistent_step_flags_is_refused(fmus, v):
     """A serialized state comes from outside and is checked field by field. Steps counted with
     no doStep taken (or an initial state to recompute after one) is no state the FMU can be in:
-    before the fix it was accepted, and the next output evaluation re-initialized the model and
-    set the FMU time back (lastSuccessfulTime 1 Ts after doStep(5 Ts, Ts))."""
+    accepted, the next output evaluation would re-initialize the model and set the FMU time back
+    (lastSuccessfulTime 1 Ts after doStep(5 Ts, Ts))."""
     with Slave(fmus, v).start() as s:
         before = bytes(s.serialize(s.get_state()))      # after ExitInitializationMode, no step
         assert _flags(before) == (0, 0, 0)
@@ -229,8 +228,8 @@ def test_a_state_with_inconsistent_step_flags_is_refused(fmus, v):
 def test_a_state_of_another_fmu_is_refused(fmus, other_fmus, v):
     """FMI 2.0.4 2.1.8 / FMI 3.0 2.2.7.4 (the complete FMU state): SetFMUstate restores a state
     this FMU copied. Two axis FMUs of one structure (a master keeping their states in one array) have
-    states of the same size and kind; before the fix B took A's state with OK and simulated on
-    with A's parameters and A's time. The serialized form was already checked (GUID)."""
+    states of the same size and kind; unchecked, B would take A's state with OK and simulate on
+    with A's parameters and A's time. The serialized form is checked as well (GUID)."""
     with Slave(fmus, v, "a").start({"x_x_cmd": 0.3}) as a, Slave(other_fmus, v, "b").start() as b:
         a.f.doStep(0.0, TS)
         sa, sb = a.get_state(), b.get_state()

@@ -1,10 +1,10 @@
-"""Third review round, trace input: axis names of the GUI layouts, a time column in ms with no
+"""Trace input: axis names of the GUI layouts, a time column in ms with no
 unit, an ``--external`` channel that is the identified axis's own signal.
 
-Each case failed before its fix (checked by running against the unfixed code): the wrong axis
-names were read without a word (two names alike put A2's positions on A1, an unknown name left
-the axis without roles), a 1 kHz trace with its time in ms was read at Ts = 1 s, and
-``--external x_mm`` gave a model predicting the measured position from itself.
+Each case fails without the code it guards: wrong axis names would be read without a word (two
+names alike put A2's positions on A1, an unknown name leaves the axis without roles), a 1 kHz
+trace with its time in ms would be read at Ts = 1 s, and ``--external x_mm`` would give a model
+predicting the measured position from itself.
 """
 import numpy as np
 import pytest
@@ -75,7 +75,7 @@ def test_valid_gui_axes_read_each_column_onto_its_axis(verify_gui):
     assert tr.axes == ["a1", "axis2"]
     np.testing.assert_allclose(tr.act("a1"), x1)
     np.testing.assert_allclose(tr.cmd("axis2"), x2 + e2)
-    # a string is a comma list, as --axes (before: "z,y" was split into 'z', ',', 'y')
+    # a string is a comma list, as --axes (not split into 'z', ',', 'y')
     tr = read_text(verify_gui, axes="z,y")
     np.testing.assert_allclose(tr.act("z"), x1)
     np.testing.assert_allclose(tr.act("y"), x2)
@@ -128,9 +128,9 @@ def test_a_stated_time_unit_is_read(tmp_path, header, units, Ts):
 
 
 def test_a_slow_stated_time_unit_and_unitless_positions_are_said(tmp_path, capsys):
-    """Session 35: ms under 't_s' (the user's own word, so read as s) and positions whose names
-    state no unit (read as mm) were read without a word: a model 1000x off. Now notes, on the
-    trace's meta and printed by every command that reads a trace; a clean file gets none."""
+    """ms under 't_s' (the user's own word, so read as s) and positions whose names state no unit
+    (read as mm) give a model 1000x off: notes say so, on the trace's meta and printed by every
+    command that reads a trace; a clean file gets none."""
     slow = read_trace(_ms_csv(tmp_path / "slow.csv", "t_s,x_cmd_mm,x_mm"))
     assert slow.Ts == pytest.approx(1.0)
     assert slow.meta["notes"] == ["column 't_s' steps by 1 s (1 Hz), read in s as stated; servo "
@@ -141,7 +141,7 @@ def test_a_slow_stated_time_unit_and_unitless_positions_are_said(tmp_path, capsy
     # in us there is no smaller unit to suggest (--unit t_us=ms would make it 1000x worse)
     assert read_trace(_ms_csv(tmp_path / "us.csv", "t_us,x_cmd_mm,x_mm", step=1e6)).meta["notes"][0].endswith(
         "fdid reads no time unit below us: convert the column")
-    # s under a ms name (session 36): 1 kHz read as 1 MHz
+    # s under a ms name: 1 kHz read as 1 MHz
     assert read_trace(_ms_csv(tmp_path / "fast.csv", "t_ms,x_cmd_mm,x_mm", step=0.001)).meta["notes"] == [
         "column 't_ms' steps by 1e-06 s (1e+06 Hz), read in ms as stated; servo traces step by 0.1-10 ms: "
         "if it is in s, give --unit t_ms=s"]
@@ -224,8 +224,8 @@ def test_external_roles_of_every_identified_axis(xy_csv, siso_gui):
 
 
 def test_grid_encoder_axes_are_machine_axes():
-    """A grid encoder (KGM) on axes ('x', 'q') was accepted; align() then blamed the time
-    overlap ("no common motion") instead of the axis name."""
+    """A grid encoder (KGM) on axes ('x', 'q') is refused for its axis name; accepted, align()
+    would blame the time overlap ("no common motion")."""
     from fdid_fmi.align.readers import SensorRecord
     with pytest.raises(InputError, match="grid encoder measures machine axes"):
         SensorRecord("k", "grid_encoder", np.arange(20) * 1e-3, np.zeros((20, 2)), axes=("x", "q"))

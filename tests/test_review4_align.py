@@ -1,5 +1,5 @@
-"""Review 4, fdid align: the aligned CSV dropped the controller trace's channels without a role
-(a spindle load, a status word, a DC-link voltage) without a word. They are kept: same rows,
+"""fdid align keeps the controller trace's channels without a role (a spindle load, a status
+word, a DC-link voltage) in the aligned CSV, not dropped without a word: same rows,
 names and the file's units, values read back bitwise; the role columns are unchanged."""
 import numpy as np
 import pytest

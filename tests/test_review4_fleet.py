@@ -1,7 +1,6 @@
-"""Review 4, the fleet layer: an entry whose FMU validation fails is not "ok", the missing compiler
+"""The fleet layer: an entry whose FMU validation fails is not "ok", the missing compiler
 is an error type (not a column name), manifest options are not abbreviated, and entry names that
-differ only in case are refused. Each test fails without the fix it guards (checked by reverting
-the fix)."""
+differ only in case are refused. Each test fails without the code it guards."""
 import json
 from pathlib import Path
 
@@ -24,7 +23,7 @@ def unmeasured(tmp_path_factory):
     through fmpy, but no discrepancy to the measurement can be computed."""
     from fdid_fmi.cli import main
     from fdid_fmi.fleet.virtual import VirtualAxis, axis_trace, write_trace_csv
-    root = tmp_path_factory.mktemp("review4")
+    root = tmp_path_factory.mktemp("fleet_entry")
     va = VirtualAxis("m01", "x", "deckel_maho_like")
     write_trace_csv(axis_trace(va, 1, n_moves=3), "x", root / "x.csv")
     full = write_trace_csv(axis_trace(va, 2, n_moves=3), "x", root / "full.csv")
@@ -111,7 +110,7 @@ def test_missing_compiler_is_told_by_its_type_not_by_a_column_name(unmeasured, t
     ("toml", ENTRY + "options = { max = 5 }\n"),
     ("csv", "machine,axis,traces,options\nm01,x,a.csv,max=5\n")])
 def test_abbreviated_option_is_refused(fmt, text):
-    # 'max = 5' was taken by argparse as --maxiter 5 without a word
+    # 'max = 5' is not taken by argparse as --maxiter 5 without a word
     e, = _entries(text, fmt)
     assert e.error is not None and "\n" not in e.error
     assert e.error.startswith(f"plant.{fmt}, column 'max': entry ") and "(m01/x)" in e.error

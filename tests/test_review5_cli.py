@@ -1,4 +1,4 @@
-"""Review round 5, the command line as a user meets it: abbreviated options refused, the
+"""The command line as a user meets it: abbreviated options refused, the
 ``fdid identify`` summary's v_tilde line, plain numbers from ``examples/emps_identify.py``, and a
 failed ``fdid demo`` that leaves no empty or half-filled output folder behind."""
 import argparse
@@ -48,7 +48,7 @@ def test_every_fdid_parser_refuses_abbreviations():
     (["fleet", "run", "{d}/m.toml", "--wor", "2"], "--wor"),                             # --workers
 ])
 def test_abbreviated_long_option_is_one_error_line(capsys, tmp_path, argv, unknown):
-    # before: `--meth pole-search` was taken as --method, `--em` as --emps (and the demo ran)
+    # `--meth pole-search` is not taken as --method, nor `--em` as --emps (and the demo does not run)
     code = _exit_code([a.format(d=tmp_path) for a in argv])
     err = capsys.readouterr().err
     assert code == 2
@@ -131,7 +131,7 @@ def test_identify_summary_prints_v_tilde_with_unit_and_axis(siso_fits):
     from fdid_fmi.model import DriveModel
     m = DriveModel.combine([siso_fits["x"], siso_fits["y"]], method="pole-search")
     lines = summary(m)
-    # before: "poles: ...  v_tilde {'x': 0.013374773828375852} mm/s"
+    # not "poles: ...  v_tilde {'x': 0.013374773828375852} mm/s"
     assert not any("{" in ln or "}" in ln for ln in lines), lines
     vt = [ln for ln in lines if ln.startswith("v_tilde")]
     assert vt == [f"v_tilde [mm/s]: {ax} {_vt(siso_fits[ax].identification['v_tilde_mm_s'][ax])}"
@@ -170,7 +170,7 @@ def _listing(folder):
 
 def test_failed_demo_emps_leaves_no_output_folder(capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    # before: out/demo/emps/ was created, empty, before the data were read
+    # out/demo/emps/ is not created, empty, before the data are read
     assert _exit_code(["demo", "--emps", "--data", str(tmp_path / "missing")]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "DATA_EMPS.mat" in err
@@ -229,8 +229,8 @@ def test_staged_output_moves_files_only_when_the_run_succeeds(tmp_path):
 
 
 def test_an_axis_without_its_measured_position_is_named_not_dropped(capsys, tmp_path):
-    """A trace whose y axis has its command column but not its measured one was identified on x
-    alone without a word (a review, session 34): the summary now says y is not identified."""
+    """A trace whose y axis has its command column but not its measured one is identified on x
+    alone, and the summary says y is not identified."""
     lines = (ROOT / "examples" / "virtual_circle.csv").read_text().splitlines()
     (tmp_path / "nocol.csv").write_text("\n".join(",".join(ln.split(",")[:4]) for ln in lines) + "\n")
     assert main(["identify", str(tmp_path / "nocol.csv"), "--method", "quasi-static",

@@ -1,15 +1,15 @@
-"""Review 5: the ``suspected`` note (lost motion) must not fire on clean data because the axis rests.
+"""The ``suspected`` note (lost motion) must not fire on clean data because the axis rests.
 
 The note's statistic (:func:`fdid_fmi.diagnose.friction.concentration`) is the residual energy
 in the 40 ms after each motion start / stop over a reference outside those windows. Pooled over
-every other sample (the Stribeck detector's form), that reference fell with the share of the
+every other sample (the Stribeck detector's form), that reference falls with the share of the
 trace the axis rests: at rest the residual is the encoder's noise, while moving it is the model's
 error. On the bundled clean example (``examples/virtual_xy_moves.csv``) the Y axis rests 83 % of
 the trace; with the default path's r2c2-noI model it leaves 0.53 µm RMS in the windows, 0.138 µm
-while moving and 0.066 µm at rest, and the pooled statistic was 42.8 (a false note against the
-gate of 21.2); the note's reference is now the larger of the moving and resting means: 14.8.
-The gate (``REVERSAL_SUSPECT`` = 19.1) was recalibrated on plant2's clean runs (both paths,
-4.72-15.95) and the virtual drive was measured (``diagnose/limits.py``).
+while moving and 0.066 µm at rest, and the pooled statistic would be 42.8 (a false note against
+a gate of 21.2); so the note's reference is the larger of the moving and resting means: 14.8.
+The gate (``REVERSAL_SUSPECT`` = 19.1) is calibrated on plant2's clean runs with that reference
+(both paths, 4.72-15.95) and measured on the virtual drive (``diagnose/limits.py``).
 """
 import warnings
 
@@ -61,8 +61,8 @@ def test_the_note_statistic_does_not_grow_with_the_share_of_rest():
     assert s_short == pytest.approx(15.0, rel=0.1) and s_long == pytest.approx(s_short, rel=0.1)
     assert s_long < REVERSAL_SUSPECT
     assert [n.kind for n in data_limits(["y"], set(), {"y": s_long}, [])] == [NoteKind.NOT_OBSERVABLE]
-    # the pooled reference (the Stribeck detector's statistic) is what rose with the rest: the
-    # false note of the bundled example (42.8 there against the former gate of 21.2)
+    # the pooled reference (the Stribeck detector's statistic) is what rises with the rest: the
+    # false note of the bundled example (42.8 there against a gate of 21.2)
     p_short = friction.concentration([short], "y", TS, rest="pooled")
     p_long = friction.concentration([long_], "y", TS, rest="pooled")
     assert p_long > 2 * p_short and p_long > 21.2

@@ -1,4 +1,4 @@
-"""Review round 6, the command line: an option that is given but not read is refused
+"""The command line: an option that is given but not read is refused
 (``fdid diagnose --val-range`` without ``--val``, ``--exclude`` of a channel no trace has), a
 held-out trace that is the training trace is refused, ... Each refusal is one error line, exit 2,
 before any fit (a guard replaces the diagnosis, so a regression fails fast instead of fitting)."""
@@ -57,7 +57,7 @@ def no_fit(monkeypatch):
 # ------------------------------------------------------------------ 1. --val-range without --val
 def test_diagnose_val_range_without_val_is_refused(diag_files, no_fit, capsys):
     d = diag_files
-    # before: the range was read only `if args.val` and the diagnosis ran on the split --train
+    # not read only `if args.val`, which would run the diagnosis on the split --train
     code = _exit_code(["diagnose", d / "m.json", "--train", d / "train.csv", "--val-range", "0:1"])
     line = _one_error(capsys, "fdid diagnose")
     assert code == 2
@@ -67,7 +67,7 @@ def test_diagnose_val_range_without_val_is_refused(diag_files, no_fit, capsys):
 # ------------------------------------------------------------------ 2. --exclude of no channel
 def test_diagnose_exclude_of_a_channel_no_trace_has_is_refused(diag_files, no_fit, capsys):
     d = diag_files
-    # before: the name was compared with the candidates and matched none, without a word
+    # not compared with the candidates, matching none without a word
     code = _exit_code(["diagnose", d / "m.json", "--train", d / "train.csv", "--val", d / "val.csv",
                        "--exclude", "x_mm", "nosuch"])
     line = _one_error(capsys, "fdid diagnose")
@@ -82,7 +82,7 @@ def test_diagnose_exclude_of_a_channel_no_trace_has_is_refused(diag_files, no_fi
                                        ("train_copy.csv", "holds the same data as the --train file")])
 def test_diagnose_val_that_is_the_training_data_is_refused(diag_files, no_fit, capsys, val, said):
     d = diag_files
-    # before: the held-out error was measured in-sample, without a word
+    # else the held-out error is measured in-sample, without a word
     code = _exit_code(["diagnose", d / "m.json", "--train", d / "train.csv", "--val", f"{d}/{val}"])
     line = _one_error(capsys, "fdid diagnose")
     assert code == 2
@@ -111,7 +111,7 @@ def test_diagnose_same_file_with_disjoint_ranges_is_held_out(diag_files, no_fit,
 ])
 def test_manifest_entry_with_both_traces_and_trace_is_refused(text, fmt):
     from fdid_fmi.fleet import parse_manifest_text
-    # before: raw.get("traces", raw.get("trace")) kept 'traces' and dropped b.csv without a word
+    # raw.get("traces", raw.get("trace")) would keep 'traces' and drop b.csv without a word
     m = parse_manifest_text(text, fmt, source=f"both.{fmt}")
     (e,) = m.entries
     assert e.error and "\n" not in e.error, e.error
@@ -135,7 +135,7 @@ def test_fleet_unreachable_scheduler_leaves_no_output_folder(tmp_path, capsys, o
     pytest.importorskip("distributed")
     (tmp_path / "m.toml").write_text(_ENTRY)
     _csv(tmp_path / "x.csv", _ramp_trace(n=300))
-    # before: the error was right but OUT/entries/ (empty) was left behind
+    # the error, and no OUT/entries/ (empty) left behind
     code = _exit_code(["fleet", "run", tmp_path / "m.toml", "--out", tmp_path / out, "--scheduler", "bogus"])
     line = _one_error(capsys, "fdid fleet")
     assert code == 2 and "Dask scheduler" in line, line
@@ -170,7 +170,7 @@ def test_fleet_run_of_a_directory_says_it_is_a_directory(tmp_path, capsys):
     d = tmp_path / "night1"
     d.mkdir()
     (d / "plant.toml").write_text(_ENTRY)
-    # before: "night1: manifest file not found", though night1 exists
+    # not "night1: manifest file not found", though night1 exists
     code = _exit_code(["fleet", "run", d, "--out", tmp_path / "o"])
     line = _one_error(capsys, "fdid fleet")
     assert code == 2 and "is a directory, not a manifest file" in line and "plant.toml" in line, line
@@ -193,7 +193,7 @@ def align_files(tmp_path):
 
 def test_align_without_a_sensor_names_the_command_once(align_files, capsys):
     d, ctrl, _ = align_files
-    # before: "fdid align: error: fdid align: give at least one sensor: ..."
+    # not "fdid align: error: fdid align: give at least one sensor: ..."
     assert _exit_code(["align", ctrl, "-o", d / "o.csv"]) == 2
     line = _one_error(capsys, "fdid align")
     assert line.count("fdid align") == 1 and "give at least one sensor" in line, line
@@ -201,7 +201,7 @@ def test_align_without_a_sensor_names_the_command_once(align_files, capsys):
 
 def test_align_json_and_output_on_one_file_says_so(align_files, capsys):
     d, ctrl, acc = align_files
-    # before: "the JSON file would overwrite the input file X" (X is no input; it did not exist)
+    # not "the JSON file would overwrite the input file X" (X is no input; it does not exist)
     assert _exit_code(["align", ctrl, "--acc", acc, "-o", d / "x.out", "--json", d / "x.out"]) == 2
     line = _one_error(capsys, "fdid align")
     assert "the JSON file and the aligned trace (-o) are the same file" in line, line
@@ -214,7 +214,7 @@ def test_align_json_and_output_on_one_file_says_so(align_files, capsys):
 @pytest.mark.parametrize("setting", ["name=a\nb", "name=a\tb", "axes=x,\ny"])
 def test_align_setting_with_a_control_character_is_refused(align_files, capsys, setting):
     d, ctrl, acc = align_files
-    # before: name=a<newline>b ran, and its newline split the table rows and messages
+    # name=a<newline>b is refused: its newline would split the table rows and messages
     assert _exit_code(["align", ctrl, "--acc", acc, setting, "-o", d / "o.csv"]) == 2
     line = _one_error(capsys, "fdid align")
     assert "control character" in line and "column '" + setting.split("=")[0] + "'" in line, line
@@ -235,7 +235,7 @@ def test_align_unit_message_uses_an(tmp_path):
     from fdid_fmi.errors import InputError
     f = tmp_path / "acc.csv"
     f.write_text("t,ax,ay,az\n0,0,0,1\n0.001,0,0,1\n0.002,0,0,1\n")
-    # before: "a accelerometer column needs a acceleration unit"
+    # not "a accelerometer column needs a acceleration unit"
     with pytest.raises(InputError, match="an accelerometer column needs an acceleration unit"):
         read_accelerometer(f)
 
@@ -252,7 +252,7 @@ def test_no_common_motion_within_max_offset_names_the_bound():
     sens = np.interp(tau + 1.24, t, env, right=0.0)   # the sensor's clock is 1.24 s behind
     off, rho = coarse_offset(t, env, tau, sens)
     assert off == pytest.approx(1.24, abs=2 * Ts) and rho > 0.9
-    # before: "... the records do not overlap in time, or the sensor did not see the moves" only
+    # more than "... the records do not overlap in time, or the sensor did not see the moves"
     with pytest.raises(InputError) as ei:
         coarse_offset(t, env, tau, sens, max_offset_s=0.5, what="accelerometer 'acc'")
     msg = str(ei.value)
@@ -265,8 +265,8 @@ def test_no_common_motion_within_max_offset_names_the_bound():
 
 
 def test_identify_summary_covers_the_ranges_given(diag_files, capsys):
-    """helper-55: with --range the free-run table summarised the whole record without a word;
-    it covers the ranges, each run from its own start as fdid simulate runs them."""
+    """With --range the free-run table covers the ranges, each run from its own start as fdid
+    simulate runs them, not the whole record."""
     import re
     from fdid_fmi.io import read_trace
     d = diag_files
@@ -284,8 +284,8 @@ def test_identify_summary_covers_the_ranges_given(diag_files, capsys):
 
 
 def test_identify_notes_a_position_that_does_not_follow_its_command(diag_files, tmp_path, capsys):
-    """helper-55: a command in m beside a position in mm (tracking error 99 % of the motion) was
-    identified without a word. The same file with matching units gets no note."""
+    """A command in m beside a position in mm (tracking error 99 % of the motion) is identified
+    with a note. The same file with matching units gets no note."""
     d = diag_files
     text = (d / "train.csv").read_text().replace("t_s,x_cmd_mm,x_mm", "t_s,x_cmd_m,x_mm")
     (tmp_path / "m_mm.csv").write_text(text)

@@ -1,4 +1,4 @@
-"""Review 6: damaged model JSON files and file names -- one clear line (exit 2) naming the file, the
+"""Damaged model JSON files and file names -- one clear line (exit 2) naming the file, the
 key or parameter and what was expected; never an internal error, never a silently wrong model.
 
 Cases run the real ``fdid`` entry point in-process (``fdid_fmi.cli.main``), like
@@ -126,7 +126,7 @@ def test_missing_and_empty_model_files(capsys, tmp_path):
 
 
 def test_an_fmu_given_as_the_model_says_so(capsys, tmp_path, model):
-    """helper-59 (session 36): an FMU where the model JSON belongs was 'not a JSON model file
+    """An FMU where the model JSON belongs is named as an FMU, not 'not a JSON model file
     ('utf-8' codec can't decode byte 0xbe ...)'."""
     csv = trace_csv(tmp_path / "run.csv", n=200)
     assert main(["export", str(model), "-o", str(tmp_path / "drive.fmu")]) == 0
@@ -154,7 +154,7 @@ def _damaged(change):
     (lambda d: d["inputs"][0].__setitem__("gain", 2), ["column 'inputs'", "unknown key 'gain'"]),
     (lambda d: d.__setitem__("poles", "x"),
      ["column 'poles'", "poles must be a JSON array of [real, imag] pairs", "got str 'x'"]),
-    (lambda d: d.__setitem__("poles", "12"), ["column 'poles'", "got str '12'"]),   # was poles 1, 2
+    (lambda d: d.__setitem__("poles", "12"), ["column 'poles'", "got str '12'"]),   # not poles 1, 2
     (lambda d: d.__setitem__("poles", [[1.0, 2.0, 3.0]]), ["column 'poles'", "pole 1 must be"]),
     (lambda d: d["A"][0].__setitem__(0, "0.9"),
      ["column 'A'", "A must be a square matrix of numbers, got str '0.9' at A[0][0]"]),
@@ -172,7 +172,8 @@ def test_damaged_model_names_the_key(capsys, tmp_path, change, words):
 
 
 def test_string_in_a_matrix_is_not_blamed_on_stability(tmp_path):
-    """'1.0' for A[0][0] was read as 1.0 and then refused as 'the model is not stable'."""
+    """'1.0' for A[0][0] is refused as a string, not read as 1.0 and refused as 'the model is not
+    stable'."""
     with pytest.raises(InputError) as exc:
         load_model(write(tmp_path / "m.json", _damaged(lambda d: d["A"][0].__setitem__(0, "1.0"))))
     assert "stable" not in str(exc.value) and "got str '1.0'" in str(exc.value)
@@ -297,7 +298,7 @@ def test_tiny_v_tilde_parameter_is_refused_by_the_fmu(tmp_path, capfd):
     with pytest.raises(FMICallException, match="status 3"):
         fmpy.simulate_fmu(fmu, stop_time=0.05, output_interval=TS, start_values={"y_v_tilde": 1e-20})
     assert "y_v_tilde = 1e-20 mm/s is below 1e-13 mm/s" in capfd.readouterr().out
-    # doStep itself says fmi2Error (it had logged the refusal and returned fmi2OK, helper-57)
+    # doStep itself says fmi2Error, not only a logged refusal with fmi2OK
     s, vr = _fmu2_in_step_mode(fmu)
     s.setReal([vr["y_v_tilde"]], [1e-20])
     with pytest.raises(FMICallException) as ei:
@@ -343,7 +344,7 @@ def test_one_friction_input_keeps_any_positive_v_tilde():
 
 
 def test_simulate_to_standard_output(capsys, tmp_path, model, monkeypatch):
-    """helper-59 (session 36): ``-o -`` wrote a file named '-'. Now the CSV alone goes to standard
+    """``-o -`` writes no file named '-': the CSV alone goes to standard
     output (the reader's notes and the summary line to standard error)."""
     monkeypatch.chdir(tmp_path)
     text = trace_csv(tmp_path / "run.csv", n=200).read_text().replace("t_s,x_cmd_mm,x_mm", "t_s,x_cmd,x_mm")

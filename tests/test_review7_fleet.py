@@ -1,10 +1,9 @@
-"""Review 7, the fleet layer: an entry is checked as ``fdid identify`` checks it (option
+"""The fleet layer: an entry is checked as ``fdid identify`` checks it (option
 combinations at manifest load, the data's scale before identification), in the manifest's words;
 an axis list is the entry's axis only; ``--previous`` refuses a model file replaced since; a failing
 entry names its trace file, keeps the readers' notes (printed in the summary, with the manifest's
 ``units = {...}`` advice) and lists no unvalidated outputs; figures not computed are said so; held-out
-traces are named as the manifest gives them. Each test fails without the fix it guards (checked by
-reverting the fix)."""
+traces are named as the manifest gives them. Each test fails without the code it guards."""
 import json
 import shutil
 from pathlib import Path
@@ -27,7 +26,7 @@ def _one(text):
 def csv_trace(tmp_path_factory):
     """A short virtual trace (1 ms, 3 moves) as CSV lines: header t_s,x_cmd_mm,x_mm,x_tool_mm."""
     from fdid_fmi.fleet.virtual import VirtualAxis, axis_trace, write_trace_csv
-    root = tmp_path_factory.mktemp("review7")
+    root = tmp_path_factory.mktemp("fleet_trace")
     va = VirtualAxis("m01", "x", "deckel_maho_like")
     p = write_trace_csv(axis_trace(va, 1, n_moves=3), "x", root / "x.csv")
     h = write_trace_csv(axis_trace(va, 2, n_moves=3), "x", root / "h.csv")
@@ -137,8 +136,8 @@ def test_previous_model_replaced_since_is_refused_for_that_entry(tmp_path, model
 
 # ----------------------------------------------------------------------------- 5. failing entry's trace and notes
 def test_failing_entry_names_its_trace_file_and_keeps_the_notes(csv_trace, tmp_path):
-    # a trace in ms labelled t_s failed with "column 'bounds': ..." (no file) and its note
-    # "column 't_s' steps by 1 s ... give --unit t_s=ms" was lost with the failure
+    # a trace in ms labelled t_s fails naming its file, not only "column 'bounds': ...", and its
+    # note "column 't_s' steps by 1 s ... give --unit t_s=ms" is kept with the failure
     (tmp_path / "ms.csv").write_text(_rewrite(csv_trace["lines"], lambda r: [r[0] * 1000] + r[1:]))
     res, edir = _run(tmp_path, ENTRY.replace("a.csv", "ms.csv") + MAP + FAST)
     assert res.status == "failed"
@@ -152,8 +151,7 @@ def test_failing_entry_names_its_trace_file_and_keeps_the_notes(csv_trace, tmp_p
 
 
 def test_an_entry_keeps_identifys_note_on_a_swapped_command(csv_trace, tmp_path):
-    # fdid identify notes a command swapped with the measured position; the fleet ran the same
-    # trace without it (session 36)
+    # fdid identify notes a command swapped with the measured position; the fleet keeps that note
     (tmp_path / "a.csv").write_text("\n".join(csv_trace["lines"]) + "\n")
     swapped = MAP.replace('"x.cmd" = "x_cmd_mm", "x.act" = "x_mm"', '"x.cmd" = "x_mm", "x.act" = "x_cmd_mm"')
     res, _ = _run(tmp_path, ENTRY + swapped + FAST)
@@ -164,7 +162,7 @@ def test_an_entry_keeps_identifys_note_on_a_swapped_command(csv_trace, tmp_path)
 
 
 def test_a_missing_or_unreadable_trace_is_named_as_the_manifest_gives_it(csv_trace, tmp_path):
-    # helper-59 (session 36): "FAILED m01/y: /abs/path/night1/nosuch.csv: file not found"
+    # as the manifest gives it, not "FAILED m01/y: /abs/path/night1/nosuch.csv: file not found"
     (tmp_path / "night1").mkdir()
     res, _ = _run(tmp_path, ENTRY.replace("a.csv", "night1/nosuch.csv") + MAP + FAST)
     assert res.status == "failed" and res.error.startswith("night1/nosuch.csv: "), res.error

@@ -64,7 +64,7 @@ def test_short_slice_keeps_the_sample_time_of_its_trace():
     t = np.arange(200) * 0.00105
     tr = Trace.from_arrays(t, {"x": {"cmd": t, "act": t}})
     assert tr.Ts == 0.00105
-    assert tr.slice(t[10], t[14]).Ts == 0.00105     # was 0.001
+    assert tr.slice(t[10], t[14]).Ts == 0.00105     # not 0.001
 
 
 # ------------------------------------------------------------------------------ model files
@@ -269,8 +269,8 @@ def _unit_model_dict():
 
 
 def test_validation_json_of_several_ranges_is_json_and_keeps_a_failure():
-    """Several ranges: max() of [1e-15, nan] was 1e-15 (a failed range hidden) and an inf
-    was written as the token Infinity, which JSON readers refuse."""
+    """Several ranges: max() of [1e-15, nan] is 1e-15 (a failed range hidden), and an inf must
+    not be written as the token Infinity, which JSON readers refuse."""
     from fdid_fmi.cli.validate import results_json
     from fdid_fmi.fmu.validate import ValidationResult
     for bad in (float("nan"), float("inf")):

@@ -51,8 +51,8 @@ def test_diagnose_refuses_a_command_that_never_moves(small):
     model, tr, va = small
     still = Trace.from_arrays(tr.t, {"x": {"cmd": np.full(tr.n, 5.0), "act": np.full(tr.n, 5.0)}},
                               source="still.csv")
-    # before: every detector saw nothing, and on a still held-out trace rounding noise (1e-9 µm)
-    # decided what was kept
+    # unchecked, every detector would see nothing, and on a still held-out trace rounding noise
+    # (1e-9 µm) would decide what is kept
     with pytest.raises(InputError, match=r"still.csv, column 'x.cmd'.*axis x never moves in the held-out trace"):
         diagnose(model, tr, still, maxiter=2, max_steps=1)
     with pytest.raises(InputError, match=r"never moves in the training trace"):
@@ -62,7 +62,7 @@ def test_diagnose_refuses_a_command_that_never_moves(small):
 def test_diagnose_refuses_a_trace_too_short_to_diagnose(small):
     model, tr, va = small
     short = tr.slice(tr.t[1000], tr.t[1010])
-    # before: a numpy ValueError from the whiteness test (lags beyond the record)
+    # not a numpy ValueError from the whiteness test (lags beyond the record)
     with pytest.raises(InputError, match="the training trace has 11 samples; diagnosis needs at least 200"):
         diagnose(model, short, va, maxiter=2, max_steps=1)
     with pytest.raises(InputError, match="the training part of the trace has 150 samples"):
@@ -190,8 +190,8 @@ def test_no_command_energy_in_the_mode_band_is_not_checked(small):
     cmd = 2.0 ** -7 * np.arange(3000)               # constant velocity, exactly: no acceleration at all
     tr = Trace.from_arrays(t, {"x": {"cmd": cmd, "act": _first_order(cmd, Ts)}}, source="ramp")
     (c,) = mode.detect(_context(model, tr))
-    # before: with no command energy anywhere every bin passed the relative energy test (0 >= 0),
-    # none was coherent, and the statistic 0 read as "no mode"
+    # with no command energy anywhere every bin would pass the relative energy test (0 >= 0),
+    # none would be coherent, and the statistic 0 would read as "no mode"
     assert c.evidence["analysed_bins"] == 0
     assert "no energy between 8 Hz" in c.not_checked and not c.detected
 
@@ -236,7 +236,7 @@ def fmu_case(small, tmp_path_factory):
 def test_validate_refuses_a_tolerance_that_is_not_positive_and_finite(fmu_case, tol):
     from fdid_fmi.fmu import validate_fmu
     _, fmu, va, _ = fmu_case
-    # before: NaN and <= 0 failed the FMU ("differ by 1.8e-15 mm (> nan mm)"), inf passed any FMU
+    # unchecked, NaN and <= 0 fail the FMU ("differ by 1.8e-15 mm (> nan mm)"), inf passes any FMU
     with pytest.raises(InputError, match="column 'tolerance'.*positive finite"):
         validate_fmu(fmu, va, tolerance_mm=tol)
 
@@ -255,7 +255,7 @@ def test_validate_names_a_missing_or_damaged_model_description(fmu_case):
     model, fmu, va, d = fmu_case
     no_md = _rezip(fmu, d / "no_md.fmu", drop=("modelDescription.xml",))
     bad_md = _rezip(fmu, d / "bad_md.fmu", replace={"modelDescription.xml": b"<fmiModelDescription>"})
-    # before: "could not be run through fmpy.simulate_fmu (...); does it have a binary for this platform?"
+    # not "could not be run through fmpy.simulate_fmu (...); does it have a binary for this platform?"
     with pytest.raises(InputError, match="no_md.fmu: is not an FMU: the archive has no modelDescription.xml") as e:
         validate_fmu(no_md, va, model=model)
     assert "binary" not in str(e.value)
@@ -270,7 +270,7 @@ def test_validate_says_when_the_trace_has_no_measured_position(fmu_case):
     cmd_only = Trace.from_arrays(va.t, {"x": {"cmd": va.cmd("x")}}, source="cmd_only")
     res = validate_fmu(fmu, cmd_only)
     assert res.max_abs_diff_reference_mm <= 1e-9       # the FMU was still checked against the reference
-    assert res.axes == {} and res.unmeasured == ["x"]  # before: an empty table and nothing said
+    assert res.axes == {} and res.unmeasured == ["x"]  # said, not an empty table
     assert "not computed: the trace has no measured position of axis x" in res.table()
     assert res.to_dict()["unmeasured"] == ["x"]
 
@@ -285,7 +285,7 @@ def test_demo_refuses_a_seed_numpy_cannot_take_before_any_work(capsys, tmp_path,
     except SystemExit as exc:           # argparse
         code = exc.code
     err = capsys.readouterr().err
-    # before: the traces were generated, then "internal error: ValueError: Seed must be between 0
+    # before any trace is generated, not "internal error: ValueError: Seed must be between 0
     # and 2**32 - 1"
     assert code == 2 and "--seed must be in 0 .. 4294967295" in err and "internal error" not in err
     assert len([ln for ln in err.splitlines() if ln.strip()]) == 1
@@ -299,7 +299,7 @@ def test_validate_names_an_fmu_that_is_not_of_the_reference_model(fmu_case):
     other = export_fmu(DriveModel.from_dict(json.loads(json.dumps(model.to_dict()).replace('"x_', '"y_')
                                                        .replace('"axis": "x"', '"axis": "y"')
                                                        .replace('"x"', '"y"'))), d / "y_axis.fmu")
-    # before: "could not be run through fmpy.simulate_fmu (no field of name x_x); does it have a
+    # not "could not be run through fmpy.simulate_fmu (no field of name x_x); does it have a
     # binary for this platform?"
     with pytest.raises(InputError, match="y_axis.fmu: the FMU has no variable.*'x_x_cmd'.*not exported from this model") as e:
         validate_fmu(other, va, model=model)
@@ -312,16 +312,15 @@ def test_validate_names_an_fmu_sampled_at_another_ts_than_the_reference(fmu_case
     slow = model.to_dict()
     slow["Ts"] = 2 * model.Ts
     other = export_fmu(DriveModel.from_dict(slow), d / "two_ms.fmu")
-    # before: the FMU refused every step, reported as "does it have a binary for this platform?"
+    # unchecked, the FMU refuses every step, which reads as "does it have a binary for this platform?"
     with pytest.raises(InputError, match="two_ms.fmu: the FMU steps at 0.002 s .* at 0.001 s") as e:
         validate_fmu(other, va, model=model)
     assert "binary" not in str(e.value)
 
 
 def test_validate_names_an_fmu_of_another_model_with_the_same_variables(fmu_case):
-    """Before: "FMU and reference simulator differ by 0.00105 mm ...; the reference itself moves
-    by 1.01e-05 mm when the commands are perturbed ... so no implementation can agree", blaming
-    friction for a model mix-up (session 34's review: an FMU of another trace's model)."""
+    """An FMU of another trace's model (B 0.1 % off) is named as a model mix-up, not blamed on
+    friction ("the reference itself moves by 1.01e-05 mm when the commands are perturbed ...")."""
     from fdid_fmi.fmu import export_fmu, validate_fmu
     model, fmu, va, d = fmu_case
     other = model.to_dict()
@@ -337,10 +336,10 @@ def test_validate_names_an_fmu_of_another_model_with_the_same_variables(fmu_case
 def test_validate_says_what_explains_a_missed_target():
     """A missed target is a problem with its reason: the model the FMU carries differs from the
     reference; or the reference moves as far under a 1e-12 mm perturbation of its commands (EMPS
-    PULSES with the rigid model: 4.6e-9 against 5.3e-9 mm; before, the message said "no
-    implementation can agree" and still failed: now it names the --tolerance that accepts it; a
-    maximum-only floor was tried in session 34 and dropped: a float32 FMU, 9.5e-7 mm off, passed
-    under the demo model's 6.4e-6 mm); or the FMU does not compute the reference model."""
+    PULSES with the rigid model: 4.6e-9 against 5.3e-9 mm; the message names the --tolerance that
+    accepts it, and the target is not passed on the sensitivity alone: a float32 FMU, 9.5e-7 mm
+    off, would pass under the demo model's 6.4e-6 mm); or the FMU does not compute the reference
+    model."""
     from fdid_fmi.fmu.validate import _reference_problem
     assert _reference_problem(4.6e-9, 1e-9, 5.33e-9).endswith("determined only to 5.33e-09 mm here; if that "
                                                             "is the cause, --tolerance 5.6e-09 accepts it")
@@ -390,7 +389,7 @@ def test_diagnosis_says_when_the_held_out_trace_is_in_other_units(small):
 
 
 def test_held_out_unlike_note_without_a_held_out_trace_names_the_record_s_parts():
-    """No --val: the held-out data are the record's second part (helper-57: the note spoke of two
+    """No --val: the held-out data are the record's second part (the note does not speak of two
     traces). One record whose second part is in µm under the first part's mm."""
     from fdid_fmi.diagnose.limits import held_out_unlike
     before = {"train": {"x": {"rms_um": 1.0}}, "val": {"x": {"rms_um": 100.0}}}
@@ -404,8 +403,8 @@ def test_held_out_unlike_note_without_a_held_out_trace_names_the_record_s_parts(
 
 
 def test_evidence_figures_label_every_axis_with_a_unit():
-    """helper-56: the mode figure's left axis and the periodic figure had no y label, and the
-    coherence curve was not in the mode figure's legend."""
+    """Every axis of the evidence figures has a y label with a unit (the mode figure's left axis,
+    the periodic figure), and the coherence curve is in the mode figure's legend."""
     import re
     import matplotlib
     matplotlib.use("Agg")
@@ -425,7 +424,7 @@ def test_evidence_figures_label_every_axis_with_a_unit():
 
 
 def test_progress_line_gives_parameters_in_words():
-    """helper-59 (session 36): the progress line printed the effect's parameters as a Python dict
+    """The progress line gives the effect's parameters in words with 4 digits, not as a Python dict
     with 17 digits ({'v_s_mm_s': 1.2583806379509181})."""
     from fdid_fmi.diagnose.loop import _params_words
     assert _params_words({"v_s_mm_s": 1.2583806379509181, "channel": "y_cmd", "samples": 3}) == \

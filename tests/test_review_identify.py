@@ -205,8 +205,8 @@ def test_absurd_fixed_v_tilde_is_not_blamed_on_a_column_of_the_trace(trace):
 
 @pytest.mark.parametrize("factor", [1.0, 1e308])
 def test_v_tilde_the_axis_never_reaches_is_refused(capsys, tmp_path, trace, factor):
-    # --v-tilde at or above the axis's largest speed: sat(v/v_tilde) never saturated, and the
-    # friction input was identified as viscous friction without a word
+    # --v-tilde at or above the axis's largest speed: sat(v/v_tilde) never saturates, and the
+    # friction input would be identified as viscous friction without a word
     vmax = np.max(np.abs(np.diff(trace.act("x")))) / TS
     code, _, err = identify_strict(capsys, tmp_path, trace, "--structure", "rigid", "--same-sample", "hold",
                                    "--maxiter", "2", "--v-tilde", repr(float(min(vmax * factor, 1e308))))
@@ -214,8 +214,8 @@ def test_v_tilde_the_axis_never_reaches_is_refused(capsys, tmp_path, trace, fact
     assert not (tmp_path / "m.json").exists()
     assert identify_strict(capsys, tmp_path, trace, "--structure", "rigid", "--same-sample", "hold",
                            "--maxiter", "2", "--v-tilde", repr(float(0.2 * vmax)))[0] == 0
-    # a search range reaching that speed: 200:300 on a 154 mm/s trace was accepted, and so was
-    # one whose upper end lay just above it (the search ended at 97.8 in 97:99 on a 97.4 mm/s trace)
+    # refused too: a search range reaching that speed (200:300 on a 154 mm/s trace), and one whose
+    # upper end lies just above it (the search would end at 97.8 in 97:99 on a 97.4 mm/s trace)
     code, _, err = identify_strict(capsys, tmp_path, trace, "--structure", "rigid", "--same-sample", "hold",
                                    "--maxiter", "2", "--v-tilde-range",
                                    f"{float(0.5 * vmax)!r}:{float(min(vmax * factor, 1e300))!r}")
@@ -224,8 +224,8 @@ def test_v_tilde_the_axis_never_reaches_is_refused(capsys, tmp_path, trace, fact
 
 def test_v_tilde_check_uses_the_velocity_the_friction_is_built_from(capsys, tmp_path, trace):
     # an axis recorded without its measured position (command and tool side only): the engine
-    # builds sat(v/v_tilde) from the command, and a v_tilde far below its speed was refused for
-    # the missing 'act' channel
+    # builds sat(v/v_tilde) from the command, and a v_tilde far below its speed must not be refused
+    # for the missing 'act' channel
     t = Trace.from_arrays(trace.t, {"x": {"cmd": trace.cmd("x"), "tool": trace.act("x")}}, source="<noact>")
     from fdid_fmi.cli.identify import check_v_tilde
     check_v_tilde(1.0, [t], ["x"])                           # 1 mm/s against ~150 mm/s: accepted
@@ -263,8 +263,8 @@ def test_absurd_dc_gain_value_is_named(capsys, tmp_path, trace):
 
 @pytest.mark.parametrize("lock,words", [("900:0.1", "locked pole 900 Hz must satisfy 0 < f <= Nyquist = 500 Hz")])
 def test_locked_pair_the_sampled_model_cannot_have_is_refused(capsys, tmp_path, trace, lock, words):
-    # a searched pole above Nyquist was refused, a locked one was accepted and recorded as 900 Hz
-    # while the Tustin-mapped model had it elsewhere (the search ran, the model was written)
+    # as a searched pole above Nyquist: accepted, a locked one would be recorded as 900 Hz while
+    # the Tustin-mapped model has it elsewhere
     csv = write_csv(tmp_path / "run.csv", trace)
     code, _, err = run(capsys, "identify", csv, "--method", "mimo", "--same-sample", "hold", "--maxiter", "2",
                        "--lock-complex", lock, "-o", tmp_path / "m.json")
@@ -289,7 +289,7 @@ def test_bad_search_settings_of_the_library_are_named(trace, kw, word):
 
 
 def test_multistart_reads_maxiter():
-    # --search multistart --maxiter N: maxiter was accepted and ignored (200 iterations per start)
+    # --search multistart --maxiter N: maxiter is read, not ignored (200 iterations per start)
     from fdid_fmi.identify.search import run_search
     calls = []
 
@@ -378,9 +378,9 @@ def test_full_ls_does_not_depend_on_where_the_axis_is():
 
 
 def test_a_search_point_that_divides_by_zero_warns_nothing():
-    # L-BFGS-B's finite-difference steps reached pole sets whose Tustin denominator is 0 at q = 1:
-    # numpy's divide-by-zero warnings were printed on the user's terminal (fdid identify on the
-    # bundled example); the objective's value is refused as before
+    # L-BFGS-B's finite-difference steps reach pole sets whose Tustin denominator is 0 at q = 1
+    # (fdid identify on the bundled example): no numpy divide-by-zero warning reaches the user's
+    # terminal; the objective's value is refused
     from fdid_fmi.identify.search import _Counter
     count = _Counter(lambda x: float(np.sum(np.ones(2) / np.zeros(2)) * x[0]), False, 1, "test")
     with warnings.catch_warnings():

@@ -37,7 +37,7 @@ def coupled():
 
 @pytest.mark.parametrize("shape", [(400,), (400, 1), (400, 3), (1,)])
 def test_run_refuses_commands_of_another_shape(coupled, shape):
-    # two axes: the C reads N x 2 doubles; a shorter array was read past its end
+    # two axes: the C reads N x 2 doubles; a shorter array would be read past its end
     with pytest.raises(InputError, match="cmds.*expected \\(N, 2\\)"):
         kernel.run(coupled, np.zeros(shape), np.zeros((400, 4)), np.zeros(2))
 
@@ -127,17 +127,17 @@ def test_regressor_rows_refuse_arguments_they_would_reinterpret(case):
     rng = np.random.default_rng(9)
     R, F, inputs, n = rng.normal(size=(3, 42)), rng.normal(size=(2, 3)), np.array([0, 1]), 2
     if case == "float inputs":
-        inputs = np.array([0.7, 1.9])               # was truncated to rows 0 and 1
+        inputs = np.array([0.7, 1.9])               # not truncated to rows 0 and 1
     elif case == "bool inputs":
         inputs = np.array([True, False])
     elif case == "inputs beyond int":
-        inputs = np.array([0, 2 ** 32 + 1])         # was wrapped to row 1
+        inputs = np.array([0, 2 ** 32 + 1])         # not wrapped to row 1
     elif case == "F columns":
-        F = rng.normal(size=(3, 2))                 # was read as (2, 3)
+        F = rng.normal(size=(3, 2))                 # not read as (2, 3)
     elif case == "F flat":
         F = rng.normal(size=6)
     elif case == "R 3-d":
-        R = rng.normal(size=(3, 4, 42))             # was read as (3, 4) rows
+        R = rng.normal(size=(3, 4, 42))             # not read as (3, 4) rows
     else:
         n, F = -1, np.zeros((2, 0))
     with pytest.raises(ValueError, match="regressor_rows"):
@@ -214,6 +214,6 @@ def test_allpole_refuses_a_denominator_that_is_not_normalised():
     rng = np.random.default_rng(11)
     W, zi, R = rng.normal(size=(2, 30)), np.zeros((2, 3)), np.zeros((2, 33))
     with pytest.raises(ValueError, match="an\\[0\\] = 1"):
-        kernel.allpole(1.0, 2.0 * AN, W, zi, R)         # was filtered as if an[0] were 1
+        kernel.allpole(1.0, 2.0 * AN, W, zi, R)         # not filtered as if an[0] were 1
     kernel.allpole(1.0, AN, W, zi, R)
     assert np.array_equal(R[:, 3:], ss.lfilter([1.0], AN, W, axis=1))

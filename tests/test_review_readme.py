@@ -1,6 +1,6 @@
 """README contract review: the commands and scripts the README names do what it says.
 
-Found by a review of the README as a new user meets it.
+The README as a new user meets it.
 """
 import os
 import subprocess
@@ -11,9 +11,10 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
-# scripts that had no argument parser: ``--help`` was taken as the output folder (files written
-# into ./--help/), ran the whole job (bench_rest, diagnose_scenarios: minutes), rewrote the
-# tracked example traces (make_example_traces) or ended in a traceback (emps_identify)
+# every script parses its arguments: without a parser ``--help`` would be taken as the output
+# folder (files written into ./--help/), run the whole job (bench_rest, diagnose_scenarios:
+# minutes), rewrite the tracked example traces (make_example_traces) or end in a traceback
+# (emps_identify)
 NO_PARSER_BEFORE = ["examples/align_virtual.py", "examples/diagnose_scenarios.py",
                     "examples/emps_identify.py", "examples/make_example_traces.py",
                     "examples/fleet/write_traces.py", "benchmarks/bench_rest.py",

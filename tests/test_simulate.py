@@ -169,8 +169,8 @@ def _trace_of(cmds, Ts):
 
 def test_run_up_keeps_a_steadily_moving_axis_moving():
     """A two-axis record: x starts accelerating (a run-up from rest is prepended), y moves
-    steadily at 10 mm/s. y starts in its steady ramp, as with start='ramp' (it started at rest,
-    its error 0, 0.006, 0.012 mm ... instead of 0.143 mm; found by a review)."""
+    steadily at 10 mm/s. y starts in its steady ramp, as with start='ramp' (started at rest, its
+    error would be 0, 0.006, 0.012 mm ... instead of 0.143 mm)."""
     import fmu_support as fs
     m = fs.coupled_model(kxy=0.0, kyx=0.0)                  # two independent axes
     t = np.arange(600) * m.Ts
@@ -184,7 +184,7 @@ def test_run_up_keeps_a_steadily_moving_axis_moving():
 
 def test_simulate_refuses_what_it_would_ignore():
     """Unknown axes, parameters or externals, a negative friction level, a NaN sample time and
-    options a quasi-static model does not take are errors (they were ignored; found by a review);
+    options a quasi-static model does not take are errors, not ignored;
     a given start velocity means a steady ramp start, no run-up."""
     m = siso_model()
     xr = moves()
@@ -218,9 +218,9 @@ def test_simulate_refuses_what_it_would_ignore():
 
 
 def test_prediction_csv_keeps_epoch_time_stamps_distinct(tmp_path):
-    """A record on an epoch clock (1.7e9 s at 0.6 ms) was written with 12 significant digits:
-    3252 rows, 196 distinct time stamps, which no reader accepts (a review, session 34). Times on
-    an ordinary clock keep the 12 digits they had."""
+    """A record on an epoch clock (1.7e9 s at 0.6 ms) written with 12 significant digits would
+    have 3252 rows and 196 distinct time stamps, which no reader accepts. Times on an ordinary
+    clock keep 12 digits."""
     from fdid_fmi.cli.simulate import write_prediction_csv
     from fdid_fmi.simulate import SimResult
     n = 3000

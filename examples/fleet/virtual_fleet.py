@@ -1,4 +1,4 @@
-"""A virtual plant fleet run for two nights: which axes changed? (the acceptance run of issue 12)
+"""A virtual plant fleet run for two nights: which axes changed?
 
 Run:  .venv/bin/python examples/fleet/virtual_fleet.py OUT_DIR [--machines 20] [--workers 2]
       [--no-diagnose] [--scheduler tcp://...]

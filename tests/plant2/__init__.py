@@ -1,4 +1,4 @@
-"""A second, independently written CNC feed-drive plant (issue 10), for testing identification
+"""A second, independently written CNC feed-drive plant, for testing identification
 and diagnosis on data that shares no code and no design with ``fdid_fmi.virtual``.
 
 See :mod:`plant2.plant` (time stepping), :mod:`plant2.params` (parameters, presets),

@@ -162,7 +162,7 @@ def _given_rotation(orientation, name, source=None):
         except (TypeError, AttributeError):
             raise InputError(f"the calibration's estimates of sensor '{name}' are not estimate entries",
                              source=source, column="orientation") from None
-        v = v.get("rotation")        # (missing: "not a 3x3 rotation" below, was KeyError)
+        v = v.get("rotation")        # (missing: "not a 3x3 rotation" below, not a KeyError)
     rot = v if isinstance(v, Rotation) else _rotation(v, name, source)
     return rot, ests
 

@@ -148,7 +148,7 @@ def run(args):
     inputs = [args.controller] + [s["path"] for s in specs] + ([args.orientation] if args.orientation else [])
     check_output(args.output, inputs=inputs, what="aligned trace")
     if args.json:
-        if same_file(args.json, args.output):      # was "would overwrite the input file" (it is no input)
+        if same_file(args.json, args.output):      # not "would overwrite the input file" (it is no input)
             raise InputError("the JSON file and the aligned trace (-o) are the same file; give two names",
                              source=args.json, column="--json")
         check_output(args.json, inputs=inputs, what="JSON file")

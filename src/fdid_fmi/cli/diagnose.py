@@ -99,7 +99,7 @@ def _refuse_in_sample_val(args, train_whole, val_whole, train, val):
 
 
 def _refuse_unknown_exclude(exclude, traces):
-    """Refuse an --exclude name that is a channel of none of the given traces (it was ignored)."""
+    """Refuse an --exclude name that is a channel of none of the given traces (not ignored)."""
     have = sorted({c for tr in traces for c in tr.channels})
     for name in exclude:
         if name not in have:
@@ -111,7 +111,7 @@ def run(args):
     from ..diagnose import diagnose
     from ..diagnose.reporting import diagnosis_report, fmt_params, fmu_check
     _check_outputs(args)
-    if args.val_range and not args.val:     # it was read only with --val: silently ignored
+    if args.val_range and not args.val:     # it cuts only --val: not silently ignored
         raise InputError("--val-range cuts the --val trace, and no --val is given (without --val the held-out "
                          "part of --train is chosen by the split; use --train-range to cut --train)",
                          column="--val-range")
@@ -143,7 +143,7 @@ def run(args):
     with naming(args.model):            # refuse a model (or block) that cannot be refitted, naming the file
         for block in split_blocks(model):
             recipe_from_model(block)
-    # an empty list ("" or ",") is refused by diagnose(); it used to mean "every detector"
+    # an empty list ("" or ",") is refused by diagnose(); it does not mean "every detector"
     dets = [d.strip() for d in args.detectors.split(",") if d.strip()] if args.detectors is not None else None
     diag = diagnose(model, train, val, detectors=dets, min_gain=args.min_gain, max_loss=args.max_loss,
                     max_steps=args.max_steps, maxiter=args.maxiter, exclude=args.exclude, workers=args.jobs,
@@ -185,7 +185,7 @@ def run(args):
         print(f"  FMU check: {fmu['error']}")
     fmu_problems = [f"{label} model: {pr}" for label in ("before", "after")
                     for pr in (fmu or {}).get(label, {}).get("problems", [])]
-    for pr in fmu_problems:     # as fdid validate says them (helper-55: the FMU RMS alone read as agreement)
+    for pr in fmu_problems:     # as fdid validate says them: the FMU RMS alone reads as agreement
         print(f"  FMU check, {pr}")
     for note in diag.notes:
         print(f"note ({note.kind.value}): {note.text}")

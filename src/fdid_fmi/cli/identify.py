@@ -183,7 +183,7 @@ def check_arguments(args):
         check_name(ch, "--external channel")
     for a in args.axis or []:
         check_name(a, "--axis")
-    if args.axis and len(set(args.axis)) != len(args.axis):    # was identified twice, then refused
+    if args.axis and len(set(args.axis)) != len(args.axis):    # refused before it is identified twice
         raise InputError(f"{args.axis}: give each axis once", source="--axis")
     for opt in ("real_hz", "omega_hz", "zeta"):
         for r in getattr(args, opt) or []:
@@ -200,7 +200,7 @@ def _refuse_unread(args):
             flag = "--" + dest.replace("_", "-")
             raise InputError(f"{flag} is read by --method {' / '.join(methods)} only, not by "
                              f"--method {args.method}", source=flag)
-    # v_tilde options: without friction (or with v_tilde fixed) they were silently ignored
+    # v_tilde options: without friction (or with v_tilde fixed) they would be silently ignored
     # (--velocity / --ma-order stay: the diagnosis's velocity features read them from the record)
     if args.v_tilde is not None and args.v_tilde_range:
         raise InputError("--v-tilde fixes v_tilde; --v-tilde-range is the range it is searched in: "
@@ -403,8 +403,8 @@ def summary(model, trace=None):
         for ax, g in model.gains.items():
             lines.append(f"{ax}: K_vel {g['K_vel']:.6g} s, K_acc {g['K_acc']:.6g} s^2, K_jerk {g['K_jerk']:.6g} s^3")
     if trace is not None:
-        # over the --range pieces when given (each run from its own start, as simulate runs them;
-        # helper-55: the whole record was summarised without a word)
+        # over the --range pieces when given (each run from its own start, as simulate runs them),
+        # not the whole record
         ranges = trace.meta.get("ranges")
         pieces = trace.select(ranges)
         sims = [simulate(model, tr) for tr in pieces]

@@ -33,7 +33,7 @@ def register(sub):
 def _time_digits(t):
     """Significant digits that keep time stamps a sample apart distinct (12 at least: the
     values' precision; 17 at most): a record on an epoch clock (1.7e9 s at 0.6 ms) needs 17,
-    and with 12 it was written with duplicate time stamps that no reader accepts."""
+    and with 12 it would be written with duplicate time stamps that no reader accepts."""
     t = np.asarray(t, float)
     span = float(np.max(np.abs(t))) if t.size > 1 else 0.0
     Ts = float(np.median(np.diff(t))) if t.size > 1 else 0.0

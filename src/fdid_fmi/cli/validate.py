@@ -42,7 +42,7 @@ def run(args):
         print()
     if args.json:
         data = results_json(results)
-        # what was validated (helper-56: the JSON did not say which FMU, trace or reference)
+        # what was validated: which FMU, trace and reference
         data["inputs"] = {"fmu": str(args.fmu), "trace": str(args.trace), "ranges_s": trace.meta.get("ranges"),
                           "model": str(args.model) if args.model else "the model.json inside the FMU"}
         atomic_write(args.json, json.dumps(data, indent=1, allow_nan=False))
@@ -52,8 +52,8 @@ def run(args):
 
 def results_json(results):
     """JSON data of the validation of one range (its result) or several: every problem, the
-    worst FMU-vs-reference difference (null when a range's is not a finite number: max() let a
-    NaN of a later range pass, and an inf was written as the non-JSON token Infinity), ok, and
+    worst FMU-vs-reference difference (null when a range's is not a finite number: max() lets a
+    NaN of a later range pass, and an inf would be written as the non-JSON token Infinity), ok, and
     each range's result."""
     import numpy as np
 

@@ -11,24 +11,24 @@ samples too early leaves that early answer, with the opposite sign, in its resid
 its poles mimic the delay later on. X_k is the lowest chi-square of the shift's fits; k* = argmin
 X_k; the statistic is X_0 / X_k* (1 when no shift helps, or when k* is the largest shift tried:
 :func:`shift_statistic`).
-Evidence 3, the refined free run (session 37): each shift refitted once more, locally from the
+Evidence 3, the refined free run: each shift refitted once more, locally from the
 current poles with the engine's friction refinement, as the given model was fitted; R_k its
 training free-run RMS (R_0 also the given model's), the statistic R_0 / R_k* with the same rule.
 A dead time is one more structural parameter: like a structure with more parameters in the
 structure choice it must lower the free run by the ``PARSIMONY`` margin (gate 1 / (1 - 0.05)),
 and its trial refit is that same local fit. Each statistic is a candidate of its own; when both
-name the same shift there is one trial, the early answer's (a wide search, as before session 37:
+name the same shift there is one trial, the early answer's (a wide search:
 the virtual drive's default path is measured with it).
 
-Why both. The early answer was built (session 27) when the free run of quick refits separated
+Why both. The early answer is needed because the free run of quick refits separates
 nothing (virtual clean up to 1.095, its 3-sample delay 1.05-1.09; plant2 clean up to 1.14, its
 delay 1.13-1.17). But on a model whose own fit was refined, quick refits lose to it at every
 shift: plant2's delay on ``fdid identify``'s default r1c2 hold model reads chi-square 15 for the
 given model and 59-135 for every refit, and nothing is named. Refined refits compare like with
-like (``/tmp/s37/delay_refined.py``, maxiter 25; README):
+like (an ad-hoc script, maxiter 25; README):
 
 - calibration, the virtual drive: clean runs (5 scenarios x seeds 1, 3) 1.000-1.016 on the
-  thesis path's model, 1.000-1.006 on the default path's (session 35's 15 runs); its 3-sample
+  thesis path's model, 1.000-1.006 on the default path's (15 runs); its 3-sample
   delay 1.36 / 1.44 (thesis, k* 4 / 3, seeds 1 / 3), 1.196 (default, k* 3, seed 1; seed 3: 1.009
   at k 5, not named);
 - measured on plant2, where it was not set: clean runs (clean_rigid, clean_rigid_2ms, clean_ff x
@@ -252,7 +252,7 @@ def detect(ctx):
             free.not_checked = infeasible
         early.plot = {"shift": np.arange(kmax + 1), "objective": _finite(X), "refined_free_run_um": _finite(R)}
         if early.detected and free.detected and early.params == free.params:
-            free.recipe = None      # one shift, one trial: the early answer's (wide search), as before
+            free.recipe = None      # one shift, one trial: the early answer's (wide search)
         out += [early, free]
     return out
 

@@ -27,9 +27,9 @@ Asymmetric Coulomb
     default space) is read as well (evidence ``t_p_loop_twin``; there 5.70); when the twin passes,
     the term goes on the twin, which is also its reference, so what the d.c. path alone gains is
     not credited to the asymmetry. Calibration with the twin (``examples/diagnose_calibrate.py --effects
-    --plant2``, session 28; the statistic is the larger of the model's and the twin's |t|): the
+    --plant2``; the statistic is the larger of the model's and the twin's |t|): the
     virtual clean runs' twins read 0.41-1.46 (the runs' maximum stays 3.11, clean_p's P-loop
-    model, which has no twin), plant2's 9 clean runs at most 1.62 as before (twins up to 1.22),
+    model, which has no twin), plant2's 9 clean runs at most 1.62 as without the twin (twins up to 1.22),
     its one-effect runs at most 1.69: the gate 4 passes no clean run on either plant.
 Backlash / lost motion (needs a tool-side channel)
     Statistic: |t| of the direction-aligned mean tool-side residual while moving, over moves:
@@ -43,13 +43,14 @@ Thresholds (calibration: ``examples/diagnose_calibrate.py``, 15 clean virtual-dr
 gentle and fast moves, a softer velocity loop, two uncoupled axes, a P loop, 3 seeds each): the largest
 clean values were 2.35 (concentration; Stribeck data: 3.5-4) and 2.0 (|t| asymmetry; the
 asymmetric P-loop data: 5.5); hence
-the Stribeck gate 2.6 (a floor of 1.0 since session 28, below) and ``ASYM_T`` = 4. The clean runs have no tool channel; the tool-side
+a separating Stribeck gate of 2.6 (the gate is a floor of 1.0, below) and ``ASYM_T`` = 4. The clean
+runs have no tool channel; the tool-side
 statistic was 2.1 on the backlash data once the backlash was modelled and 5.8 on a two-mass axis
 without backlash (tool-side dynamics, not lost motion), against 73 with 20 µm backlash: hence
 ``BACKLASH_T`` = 8.
 
 Recalibrated with the causal models (``examples/diagnose_calibrate.py --effects --plant2``):
-virtual clean up to 2.17 (concentration, clean_soft seed 5; 1.2 x = 2.60, the gate until session 28) and
+virtual clean up to 2.17 (concentration, clean_soft seed 5; 1.2 x = 2.60, the separating gate) and
 3.11 (|t|, clean_p seed 3; 1.2 x = 3.73 < 4); virtual Stribeck 3.27, asymmetric P loop 6.84,
 backlash 69. The second plant (tests/plant2, LuGre friction) does NOT transfer for Stribeck: its 9
 clean runs give 6.55-17.7 (all above 2.6: LuGre's own breakaway is what the statistic sees) and
@@ -58,14 +59,14 @@ maximum (21.2) would miss the virtual Stribeck. Its clean |t| stays below 1.62 (
 run there). Tool side on plant2: backlash 21.7, the 38 Hz tool-side mode without backlash 11.8
 (tried; the held-out criterion and the reference decide).
 
-Since session 28 the Stribeck gate is 1.0, a floor, not a separation: the concentration only
+The Stribeck gate is 1.0, a floor, not a separation: the concentration only
 asks that the residual sit at the ends of the moves more than elsewhere, and the refit with its
 held-out criterion and the plausibility check (the breakaway excess must be positive) decide. On
 ``fdid identify``'s default models the statistic separates neither plant: the virtual Stribeck
 run's chosen r2c2 reads 2.01, below the thesis-path clean maximum (2.17), and its refit is 9 %
 better held out (0.396 -> 0.360 um, kept); the virtual clean runs' default models read 1.20-1.55
-and nothing is kept on them; plant2's runs read 8-52 (all tried before as well), its periodic
-run 0.39-0.46 (not tried).
+and nothing is kept on them; plant2's runs read 8-52 (all above the separating gate as well), its
+periodic run 0.39-0.46 (not tried).
 """
 from __future__ import annotations
 
@@ -81,7 +82,7 @@ from .base import Candidate, command_velocity, motion_events, scan_refine
 from .residuals import residuals
 
 WINDOW_S = 0.04
-STRIBECK_RATIO = 1.0      # a floor: the refit decides (module docstring, session 28)
+STRIBECK_RATIO = 1.0      # a floor: the refit decides (module docstring)
 ASYM_T = 4.0
 BACKLASH_T = 8.0
 MIN_MOVES = 3           # moves the t statistics need

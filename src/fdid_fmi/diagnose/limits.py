@@ -67,12 +67,12 @@ against 2.1: r2c2-noI fits the moving residual to 0.138 µm, the rigid model to 
 both leave 0.53 µm in the windows); on plant2 the two paths differ by less than 30 %.
 
 Threshold of ``held_out_unlike`` (``HELD_OUT_UNLIKE``), calibrated on the second plant and measured
-on the virtual drive (session 35, ad-hoc ``/tmp/s35/valratio.py``: each scenario's base model,
+on the virtual drive (an ad-hoc script: each scenario's base model,
 the thesis path's, its held-out / training free-run RMS per channel and validation trace). On
 plant2 an unmodelled effect raises it up to 20.2 (the 3-sample dead time on the diamond: 5.79
 against 0.287 µm; 22.8 with the default path's r1c2 hold model), the rest 0.59-4.3: 1.2 x 22.8 =
 27.4. Measured on the virtual drive: its 12 diagnosis scenarios 0.92-1.29, no note. Another
-machine (``/tmp/s35/cross.py``): the virtual clean model on plant2's clean_rigid circle /
+machine (ad-hoc script): the virtual clean model on plant2's clean_rigid circle /
 diamond / reversals 1069 / 1166 / 441, plant2's model on the virtual clean held-out trace 1184;
 positions in µm under a mm header about 1000x (tests/test_review_diagnose.py): notes.
 
@@ -232,7 +232,7 @@ def held_out_unlike(before, split=False, unseen=()):
     channel), the channel with the largest ratio named; ``split``: the held-out data are the
     second part of the training record (no held-out trace was given); ``unseen``: channels only
     the held-out data have (an input the model does not know may be what moves them: EMPS's
-    pulses_N, 35 x, helper-55)."""
+    pulses_N, 35 x)."""
     worst = {}
     for ch, row in before.get("val", {}).items():
         t = before.get("train", {}).get(ch, {}).get("rms_um")

@@ -12,14 +12,14 @@ Each round:
 3. candidates are tried in order of their training improvement; the first one that meets the
    KEEP CRITERION on the held-out trace is kept, and the next round starts from it.
 
-Order check (issue 10: "a residual explained by one more pole is 'the model's order is too
-low', not a dead time"): before an effect can be named, i.e. in the first round with a candidate
+Order check (a residual explained by one more pole means the model's order is too low, not that
+there is a dead time): before an effect can be named, i.e. in the first round with a candidate
 (and, once that check was met, in every later round with a dead-time or mode candidate), the
 current structure is also refitted with one more real pole
 (:mod:`.order`). The check is met when that refit meets the keep criterion and no training
 channel rises by more than ``max_loss`` either (a refit that predicts only the held-out data
-better, while its free run on the training data is worse, is no evidence of missing dynamics;
-this condition was added after plant2's delay run, see README).
+better, while its free run on the training data is worse, is no evidence of missing dynamics:
+plant2's delay run shows such a refit, see README).
 When it is met, a dead time or a mode is kept only if it also beats that refit, and in the first
 round the diagnosis reports the note ``order_too_low`` (:mod:`.limits`; the model is not changed
 by it).

@@ -19,7 +19,7 @@ candidates are both refitted and the better one on training data is tried first 
 
 Threshold ``COHERENT_FRACTION`` (calibration: ``examples/diagnose_calibrate.py --effects
 --plant2``, 15 clean virtual-drive runs, causal models): clean runs up to 0.225 (softer velocity
-loop, seed 3; it passed the earlier 0.2, set on non-causal models where the largest was 0.16),
+loop, seed 3; above 0.2, which non-causal models' largest, 0.16, would suggest),
 12 of 15 below 0.07; 1.2 x 0.225 = 0.27. The 54 Hz virtual mode gives 0.39. On the second plant
 (tests/plant2) the 52 Hz mode gives 0.34 and the 38 Hz tool-side mode 0.29 (both tried), but one
 of its 9 clean runs (clean_rigid, seed 0) gives 0.42: not separable there; the held-out criterion

@@ -1,4 +1,4 @@
-"""Is the model's order too low? One more real pole, tried before an effect is named (issue 10).
+"""Is the model's order too low? One more real pole, tried before an effect is named.
 
 A residual that one more pole explains means the model's order is too low; it is not a dead time
 or a mode, which are the effects a missing pole imitates best. :mod:`.loop` decides what the
@@ -9,9 +9,9 @@ with every other pole fixed (one LS projection per point, parabola-refined, as t
 velocity in :mod:`.friction`). The pole search then runs in the local windows around all the
 poles, starting from the scan's best point (the search itself ends no worse than that start in
 the LS objective; the engine then picks, by training free run, among minima within 5 % of the
-best). A differential-evolution search of the new pole over the whole range, with the other
-poles in their local windows, was tried first. Held out, it was worse than the better of the
-model and its same-order refit on 9 of 14 plant2 and virtual-drive runs, by up to 79 %: its few
+best). The search is not a differential-evolution search of the new pole over the whole range with
+the other poles in their local windows: held out, that is worse than the better of the model and
+its same-order refit on 9 of 14 plant2 and virtual-drive runs, by up to 79 %: its few
 generations do not converge in the larger space.
 """
 from __future__ import annotations

@@ -26,7 +26,7 @@ def fmu_check(diag, workdir=None, fmi_version=2):
     are not available. ``workdir``: where the FMUs are written (kept); default a temporary folder,
     removed before returning.
     """
-    if workdir is None:     # a temporary folder, removed after (one was left per run: helper-55)
+    if workdir is None:     # a temporary folder, removed after: none is left per run
         with tempfile.TemporaryDirectory(prefix="fdid_diagnose_") as wd:
             return _fmu_check(diag, Path(wd), fmi_version)
     wd = Path(workdir)

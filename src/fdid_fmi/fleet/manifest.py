@@ -144,7 +144,7 @@ class Manifest:
 # ----------------------------------------------------------------------------- option checking
 class _RaisingParser(argparse.ArgumentParser):
     """An ArgumentParser that raises InputError instead of printing usage and exiting, and takes
-    no abbreviation of an option (``--max`` was read as ``--maxiter``); the ``fdid identify``
+    no abbreviation of an option (``--max`` is not read as ``--maxiter``); the ``fdid identify``
     sub-parser is of this class too (``add_subparsers`` makes its parsers of the parent's class)."""
 
     def __init__(self, *args, **kwargs):
@@ -297,7 +297,7 @@ def _build_entry(raw: dict, defaults: dict, base: Path, row: int, where: str) ->
         if unknown:
             raise InputError(f"unknown key(s) {unknown} in entry {row}; expected {sorted(_ENTRY_KEYS)}",
                              source=where, column=unknown[0])
-        if "traces" in raw and "trace" in raw:    # one was dropped without a word
+        if "traces" in raw and "trace" in raw:    # one would be dropped without a word
             raise InputError(f"entry {row} ({machine}/{axis}) gives both 'traces' and 'trace' "
                              f"({raw['traces']!r} and {raw['trace']!r}); give the trace files once, "
                              f"as 'traces'", source=where, column="trace")
@@ -506,7 +506,7 @@ def parse_manifest_text(text, fmt, base=".", source="<manifest>") -> Manifest:
 def load_manifest(path) -> Manifest:
     """Read a ``.toml`` or ``.csv`` manifest file (see the module docstring)."""
     p = Path(path)
-    if p.is_dir():          # was "manifest file not found", though the path exists
+    if p.is_dir():          # not "manifest file not found", though the path exists
         try:
             inside = sorted(f.name for f in p.iterdir() if f.suffix.lower() == ".toml" and f.is_file())
         except OSError:

@@ -281,8 +281,8 @@ class _LocalPool:
     def close(self, interrupted=False):
         """Shut the pool down; ``interrupted`` (Ctrl-C): without waiting, its workers terminated.
         A plain shutdown waits for the entries already handed to the workers (the running ones and
-        one queued more, which a worker takes after its Ctrl-C): helper-56 saw an entry that had
-        not started run in full after the interrupt. A terminated worker's outputs are atomic; its
+        one queued more, which a worker takes after its Ctrl-C): an entry that had not started
+        would run in full after the interrupt. A terminated worker's outputs are atomic; its
         temporary files are removed by the runner."""
         if not interrupted:
             self.pool.shutdown(wait=True, cancel_futures=True)
@@ -330,7 +330,7 @@ class _Dask:
 
     def close(self, interrupted=False):
         """Close the client this runner opened; ``interrupted`` (Ctrl-C): first cancel the entries
-        not finished (the command had ended while the cluster went on with them: helper-56). An
+        not finished (the cluster would go on with them after the command has ended). An
         entry a worker is running finishes there (a Dask task is not stopped); its outputs are
         atomic."""
         if interrupted and self.futures:

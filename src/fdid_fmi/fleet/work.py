@@ -410,7 +410,7 @@ def run_entry(item: WorkItem) -> EntryResult:
             res.compare_key = item.compare_key
         else:
             res.change, res.compare_key = None, None
-        # the validation's verdict decides (before: an entry was "ok" whatever it found); not
+        # the validation's verdict decides (an entry is not "ok" whatever it finds); not
         # kept for a rerun: the FMU's binary and its run depend on the worker's compiler and fmpy
         failure = validation_failure(res.validation)
         res.status, res.error, res.deterministic = ("validation_failed" if failure else "ok"), failure, False

@@ -478,8 +478,8 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     res.problems = [f"fmpy: {p}" for p in fmpy_validate(str(fmu_path))]
     h = getattr(md.defaultExperiment, "stepSize", None) if md.defaultExperiment is not None else None
     if h is not None and float(h) > 0 and abs(float(h) - model.Ts) > 1e-9 * model.Ts:
-        # before: the FMU refused every step, reported as "does it have a binary for this platform?";
-        # checked before the trace, which a wrong --model would have been blamed on (helper-59)
+        # the FMU would refuse every step, which reads as a missing binary for this platform;
+        # checked before the trace, which a wrong --model would otherwise be blamed on
         raise InputError(f"the FMU steps at {float(h):g} s (its default experiment) but {given} at "
                          f"{model.Ts:g} s: the FMU was not exported from that model", source=str(fmu_path))
     axes = model.axes
@@ -504,7 +504,7 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     used = list(names.values()) + [var[("v0", ak[a])] for a in axes if ("v0", ak[a]) in var] + [
         v.name for v in lay.inputs if v.role == "ext"]
     lacking = [nm for nm in used if nm not in have]
-    if lacking:         # before: fmpy's "no field of name ...", blamed on a missing binary
+    if lacking:         # not fmpy's "no field of name ...", which reads as a missing binary
         raise InputError(f"the FMU has no variable(s) {lacking} of the reference model: it was not "
                          "exported from this model (pass the model it was exported from with --model)",
                          source=str(fmu_path))
@@ -605,8 +605,8 @@ def _coarse_figures(res, fmu_path, t, table, pos_names, start_values, R, ref, Ts
 
 def _reference_problem(d, tol, sens, carried_differences=()):
     """The problem of an FMU that misses the target ``tol`` by ``d`` (mm), with what explains it:
-    the model the FMU carries differs from the reference (``carried_differences``, a review found
-    such a mix-up blamed on friction), or the reference itself moves by ``sens`` (mm) when its
+    the model the FMU carries differs from the reference (``carried_differences``: such a mix-up
+    is otherwise easily blamed on friction), or the reference itself moves by ``sens`` (mm) when its
     commands are perturbed by 1e-12 mm, when that is as far: stick/slip decisions amplify rounding,
     and two compilations of the same C round differently (a maximum says nothing of where: a
     float32 FMU differed by less than such a sensitivity, so it is no pass, only a reason)."""
@@ -615,8 +615,8 @@ def _reference_problem(d, tol, sens, carried_differences=()):
         return msg + (f": the FMU carries another model (its resources/model.json differs from the "
                       f"reference in {', '.join(carried_differences)})")
     if sens >= d:
-        # helper-55: EMPS's r2c2 FMU differed by 5.9e-8 mm, its reference moved 2.4e-3 mm: the
-        # tolerance alone would have passed a model whose prediction is decided by rounding
+        # a model whose prediction is decided by rounding would pass on the tolerance alone
+        # (EMPS's r2c2: 5.9e-8 mm FMU difference, 2.4e-3 mm rounding sensitivity)
         return msg + (f"; the reference itself moves by {sens:.3g} mm when its commands are perturbed by "
                       f"1e-12 mm (friction stick-slip amplifies rounding on this trace), so the model's "
                       f"prediction is determined only to {sens:.3g} mm here"

@@ -28,21 +28,21 @@ axis a second complex pair, a P/PD position loop a friction d.c. gain (the 1/P(s
    was set on the virtual drive, where without it the periodic run's r2c2 went from cubic to
    quadratic (-4.0 % training, +8.4 % held out); with it no virtual run changes form.
 
-Determined predictions (session 35). The kept structure's rounding sensitivity is measured and
+Determined predictions. The kept structure's rounding sensitivity is measured and
 recorded (``sensitivity_mm``: how far its training free run moves when its commands carry 1e-12 mm
 of noise, :func:`~fdid_fmi.simulate.rounding_sensitivity`); above ``SENSITIVITY_MAX`` (a tenth)
 of its own free-run RMS it is flagged "not determined" in the table, with a note. Stick/slip
 decisions amplify rounding, more with slow real poles: EMPS's r2c2 cubic (two real poles at 0.156
-and 0.159 Hz) moves 2.41 µm against its 1.46 µm RMS; with every candidate measured (commit
-49c62ab; dropped since: the test suite's CPU rose to 1147 of its 1200 s) every EMPS candidate
-with two complex pairs or r1c2 moved 0.35-2.4 µm, rigid and r2c1 below 1 %. Excluding such
-candidates from the choice was measured and not kept: with a 1 % rule EMPS would fall to
+and 0.159 Hz) moves 2.41 µm against its 1.46 µm RMS; measured on every candidate, every EMPS
+candidate with two complex pairs or r1c2 moves 0.35-2.4 µm, rigid and r2c1 below 1 %. Only the
+kept structure is measured: measuring every candidate takes the test suite's CPU to 1147 of its
+1200 s. Such candidates are not excluded from the choice: with a 1 % rule EMPS would fall to
 rigid-noI at 2.72 µm (above the published physics model's 1.8 µm), and on the virtual
 feed-forward axis, where the sensitivity ranges from 1e-6 to 10 of the RMS across candidates
-(the chosen r2c1 quadratic 0.038), the choice moved to the rigid body. The tenth is a reporting
-rule, not fitted to a plant: it flags the bundled two-axis example's kept r2c2-noI hold (0.074
-µm against 0.081 µm on x, 0.117 against 0.154 µm on y) and EMPS's r2c2, not the feed-forward
-axis's r2c1. What it means for an FMU: it computes what the model computes from the input
+(the chosen r2c1 quadratic 0.038), the choice would move to the rigid body. The tenth is a
+reporting rule, not fitted to a plant: it flags the bundled two-axis example's kept r2c2-noI
+hold (0.074 µm against 0.081 µm on x, 0.117 against 0.154 µm on y) and EMPS's r2c2, not the
+feed-forward axis's r2c1. What it means for an FMU: it computes what the model computes from the input
 doubles it is given (exact there); a master that rounds or interpolates its inputs differently
 from ``fdid simulate`` gets outputs that differ by up to the sensitivity (README).
 
@@ -54,9 +54,9 @@ score covers both: a drive-train mode shows on the tool side far more than in th
 error (the virtual flexible Y axis: the error-only choice put two pairs at 6.6 and 15.2 Hz; with
 the tool side, r1c2 finds the 25.66 Hz mode within 0.1 %).
 
-A held-out score (the last 30 % of the training moves, the model fitted on the rest) was tried
-first and dropped: on the feed-forward virtual axis it ranked the structures against their
-validation on a circle and a diamond (it chose two complex pairs, 1.16-1.25x the validation
+The score is not a held-out score (the last 30 % of the training moves, the model fitted on the
+rest): on the feed-forward virtual axis such a score ranks the structures against their
+validation on a circle and a diamond (it chooses two complex pairs, 1.16-1.25x the validation
 error of the structure the free run chooses), because the few moves held out say less about a
 structure than all of them run freely; with at most 18 parameters against thousands of samples
 the free run is not fitting noise. The candidates run in parallel processes. Every candidate,
@@ -158,7 +158,7 @@ class CandidateScore:
     @property
     def determined(self):
         """Its free run moves by at most ``SENSITIVITY_MAX`` of its RMS under 1e-12 mm of command
-        noise (True when not measured: a record written before session 35)."""
+        noise (True when not measured: a record that has no ``sensitivity_mm``)."""
         return self.sensitivity_mm is None or self.sensitivity_mm <= SENSITIVITY_MAX * self.free_run_rms_mm
 
     def to_dict(self):

@@ -119,7 +119,7 @@ def identify_full_ls(traces, axis="x", cutoff_hz=None, order=2, v_tilde=None, p_
     v_tilde = None if v_tilde is None else finite_number(v_tilde, "v_tilde", positive=True)
     traces = training_ranges(traces, [axis], roles=("cmd", "act"))
     Ts = traces[0].Ts
-    # 0 was taken for "the default" (silently); None is the default, 0 a bad value
+    # None is the default, 0 a bad value (not silently "the default")
     cutoff_hz = default_cutoff(Ts) if cutoff_hz is None else finite_number(cutoff_hz, "cutoff_hz", positive=True)
     rows, ys, vmax = [], [], 0.0
     for tr in traces:
@@ -128,8 +128,8 @@ def identify_full_ls(traces, axis="x", cutoff_hz=None, order=2, v_tilde=None, p_
             raise InputError(f"axis '{axis}' does not move in the data range", source=tr.source,
                              column=f"{axis}.cmd")
         # positions relative to the range's first command: a drive's law does not depend on where
-        # the axis is, but Eqn 4.7's LS does (an offset of 5 mm went into the friction columns,
-        # which sum to ~1 in motion: free run 3.2 -> 209 um). Found by a review
+        # the axis is, but Eqn 4.7's LS does (an offset of 5 mm goes into the friction columns,
+        # which sum to ~1 in motion: free run 3.2 -> 209 um)
         xr, x = xr - xr[0], x - xr[0]
         ei = Ts * np.cumsum(xr - x)                                         # Eqn 4.6
         xd = butter_filtfilt(derivative(x, Ts, 1), Ts, cutoff_hz, order)

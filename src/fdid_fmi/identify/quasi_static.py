@@ -47,7 +47,7 @@ def identify_quasi_static(traces, axes=None, cutoff_hz=None, order=2, terms=3):
     if not axes:
         raise InputError("no axis with both commanded and measured position", source=traces[0].source)
     training_ranges(traces, axes, roles=("cmd", "act"))
-    # 0 was taken for "the default" (silently); None is the default, 0 a bad value
+    # None is the default, 0 a bad value (not silently "the default")
     cutoff_hz = default_cutoff(Ts) if cutoff_hz is None else finite_number(cutoff_hz, "cutoff_hz", positive=True)
     gains, metrics = {}, {}
     for ax in axes:

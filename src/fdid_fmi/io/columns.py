@@ -464,7 +464,7 @@ def time_step_note(t, *, column, unit):
     or more, or by less than ``MIN_STATED_STEP_S`` (10 us), else ``[]``: the unit was stated, so
     it is read as stated (a slow record may be real), but servo traces step by 0.1-10 ms, and a ms
     column under an s name (``t_s``) makes every pole bound and Ts of the model 1000x off without
-    an error (session 35: the bundled example's time in ms under ``t_s`` identified a quasi-static
+    an error (the bundled example's time in ms under ``t_s`` identifies a quasi-static
     K_vel of 12.4 s for 0.0124 s); s under a ms name makes them 1000x off the other way."""
     ts = _slow_step(t)
     if ts is not None:

@@ -6,8 +6,8 @@ import numpy as np
 
 # the tracking error of a servo is a small part of its motion: RMS(cmd - act) / RMS(cmd - mean)
 # is at most 0.07 on the virtual drive's diagnosis scenarios, 0.22 on plant2's (training and
-# held-out traces), 0.007 on EMPS; a command in m beside a position in mm reads 0.999 (helper-55:
-# identified without a word). A rule, with room on both plants: a note, not a refusal.
+# held-out traces), 0.007 on EMPS; a command in m beside a position in mm reads 0.999 and
+# would otherwise be identified without a word. A rule, with room on both plants: a note, not a refusal.
 MAX_FOLLOW_RATIO = 0.5
 # a servo's position lags its command: the tracking error correlates positively with the commanded
 # velocity, corr(cmd - act, d cmd/dt) >= -0.03 on the virtual drive's presets (calibration: a P loop
