@@ -1,4 +1,4 @@
-"""Review 6 of ``fdid plan``'s prediction and interpolation: bounded memory of the contour error
+"""``fdid plan``'s prediction and interpolation: bounded memory of the contour error
 (in chunks of samples, the same numbers), per-block figures without a blocks x samples mask,
 setpoints from another program or at another sample time refused, a block too long to sample
 refused before any array is made."""
@@ -40,7 +40,7 @@ def _lagged(ip, lag=15, offset=(0.004, -0.003)):
 
 @pytest.fixture(scope="module")
 def planned():
-    prog = parse_program(PROGRAM, source="review6.nc", start=[0, 0, 0])
+    prog = parse_program(PROGRAM, source="program.nc", start=[0, 0, 0])
     return prog, interpolate(prog, LIMITS, Ts)
 
 
@@ -98,7 +98,7 @@ def test_block_table_matches_a_mask_per_block(planned):
         assert row["contour_max_um"] == float(np.max(np.abs(c[sel]))) * 1e3
         assert row["contour_rms_um"] == pytest.approx(np.sqrt(np.mean(c[sel] ** 2)) * 1e3, rel=1e-12)
         assert row["x_max_err_um"] == float(np.max(np.abs(err["x"][sel]))) * 1e3
-        # a dwell's settling error counts against the cutting block before it (review 9)
+        # a dwell's settling error counts against the cutting block before it
         after = [r["contour_max_um"] for bb, r in zip(prog.blocks, rows) if bb.kind == "dwell"
                  and bb.index == b.index + 1]
         assert row["contour_max_with_dwell_um"] == max([row["contour_max_um"]] + after)

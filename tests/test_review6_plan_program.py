@@ -1,6 +1,6 @@
-"""Review 6 of ``fdid plan`` and its NC program reader: a program the twin cannot see, options
+"""``fdid plan`` and its NC program reader: a program the twin cannot see, options
 checked only after the work, R arcs without the I/J rounding tolerance, Latin-1 comments, and
-the small parse messages. Each test failed before its fix (checked by reverting it)."""
+the small parse messages. Each test fails without the code it guards."""
 import math
 
 import numpy as np
@@ -184,13 +184,13 @@ def test_program_ends_at_the_closing_percent(tmp_path, model_xy, capsys):
 
 
 def test_setpoints_at_another_sample_time_are_resampled_with_a_note(tmp_path, capsys):
-    """fdid plan --commands resampled a 0.6 ms trace to a 1 ms twin without a word (a review,
-    session 34); it now says so (simulate, validate and diagnose refuse such a trace, but a
-    controller's interpolation cycle need not be the model's)."""
+    """fdid plan --commands resamples a 0.6 ms trace to a 1 ms twin and says so (simulate,
+    validate and diagnose refuse such a trace, but a controller's interpolation cycle need not be
+    the model's)."""
     import fmu_support as fs
     from pathlib import Path
     ex = Path(__file__).resolve().parents[1] / "examples"
-    m = fs.coupled_model()      # two axes: a one-axis twin under the circle is refused (session 36)
+    m = fs.coupled_model()      # two axes: a one-axis twin under the circle is refused
     assert m.Ts == 1e-3
     m.save(tmp_path / "m.json")
     assert main(["plan", str(ex / "circle.nc"), "--model", str(tmp_path / "m.json"),

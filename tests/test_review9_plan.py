@@ -1,4 +1,4 @@
-"""Review 9 of ``fdid plan``: the in-position wait after a rapid (G0), a dwell's settling error
+"""``fdid plan``: the in-position wait after a rapid (G0), a dwell's settling error
 counted against the cutting block before it, the optimiser's figures as the written program
 plans them, the JSON's overrides keyed by the tables' block number, and the summary when no
 uniform override meets the tolerance.
@@ -212,7 +212,7 @@ def test_no_feasible_uniform_override_is_said_in_words(files, tmp_path, capsys):
     assert "no uniform feed override meets the tolerance" in html and "0.0 %" not in html
 
 
-# --- helper-59: a twin of one axis under a program in a plane -------------------------------------
+# --- a twin of one axis under a program in a plane -------------------------------------------------
 
 def _one_axis(d):
     p = math.exp(-40.0 * TS)
@@ -238,7 +238,7 @@ def test_a_one_axis_twin_under_a_plane_program_is_refused_before_any_line(files,
     assert code == 2 and out == "" and "feed optimisation needs a model of (at least) two axes" in err, err
 
 
-# --- the in-position wait, stepped once along the program (session 36) ---------------------------
+# --- the in-position wait, stepped once along the program -----------------------------------------
 
 def _reference_wait(model, P, Ts, window, cap_s):
     """The wait as first built: the whole prefix simulated from rest, then the end point held."""
@@ -292,7 +292,7 @@ def test_the_stepped_waits_are_those_of_a_run_of_each_prefix(corner, monkeypatch
 def test_the_optimisation_line_judges_the_cutting_blocks_not_the_rapids(files, tmp_path, capsys):
     """A whole-program contour MAX above the tolerance was printed beside the optimised feeds when
     it came from a rapid (not judged): 21.64 um at tol 20 on a 1000-block program whose cutting
-    blocks were all within it (session 36)."""
+    blocks were all within it."""
     nc = tmp_path / "rapids.nc"
     nc.write_text("G21 G90 G17\nG0 X40 Y25\nG1 X41 F300\nG0 X0 Y0\nG1 Y1 F300\n")
     code, out, _ = _plan(capsys, nc, "--model", files / "fast.json", "--limits", "100,2000,1e5", "--tol", "0.02",

@@ -1,7 +1,7 @@
-"""Review 9 of ``fdid plan``'s program reader and writers: the CSV's numbers in full precision, a
+"""``fdid plan``'s program reader and writers: the CSV's numbers in full precision, a
 program written back in its own encoding (byte order, byte-order mark and line ends kept),
-``G64 P Q`` passed over, a long ``G4 P`` noted, a non-integer ``N`` refused. Each test failed
-before its fix (checked by reverting it)."""
+``G64 P Q`` passed over, a long ``G4 P`` noted, a non-integer ``N`` refused. Each test fails without
+the code it guards."""
 import codecs
 import math
 

@@ -203,8 +203,8 @@ def run(args):
         raise InputError(f"the program moves only the axes {prog.axes_used}, none of which the twin "
                          f"models (axes {axes}): there is no error to predict or feed to optimise",
                          source=args.program)
-    # a contour error needs two axes: with one, the program's path in a plane read 0.00 um and
-    # "every block stays inside" the tolerance (helper-59, session 36)
+    # a contour error needs two axes: with one, the program's path in a plane would read 0.00 um
+    # and "every block stays inside" the tolerance
     if len(axes) < 2 and len(prog.axes_used) >= 2:
         raise InputError(f"the twin models one axis ({axes[0]}) of the axes the program moves "
                          f"{prog.axes_used}: a contour error needs the path's plane; give a twin of "
@@ -218,7 +218,7 @@ def run(args):
             tr = tr.resample(Ts)
         ip = commands_from_trace(prog, tr, axes, Ts=Ts)
         in_pos = None
-        if tr.Ts != recorded_Ts:                # said, not silent (a review, session 34)
+        if tr.Ts != recorded_Ts:                # said, not silent
             print(f"note: the setpoints of {args.commands}, recorded at Ts = {recorded_Ts:g} s, are "
                   f"resampled to the model's Ts = {Ts:g} s")
         lim = None

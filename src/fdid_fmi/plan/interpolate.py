@@ -150,8 +150,8 @@ class InPosition:
     def tracker(self, Ts):
         """A :class:`_Settling` for one interpolation: its ``wait`` takes the commands of one
         program as they grow, and steps the twin over each new part only (the waits of a run of
-        each whole prefix from rest, which was quadratic in the program's length: 400 rapids 41 s
-        against 3.4 s without waits, session 36)."""
+        each whole prefix from rest would be quadratic in the program's length: 400 rapids 41 s
+        against 3.4 s without waits)."""
         return _Settling(self, Ts)
 
     def describe(self, block, w, residual, Ts):
