@@ -100,7 +100,7 @@ def test_python_backend_refuses_a_v_tilde_the_friction_solve_cannot_resolve(tmp_
     # refusal as fmi2Fatal (any exception of the slave), the C FMU as fmi2Error
     from fmpy import simulate_fmu
     from fmpy.fmi1 import FMICallException
-    from test_review6_model_json import LO, TS, two_axis
+    from test_model_json import LO, TS, two_axis
     from fdid_fmi.model import DriveModel
     fmu = str(export_fmu(DriveModel.from_dict(two_axis()), tmp_path / "p.fmu", backend="python"))
     with pytest.raises(FMICallException, match="status 4"):

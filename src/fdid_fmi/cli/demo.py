@@ -208,7 +208,7 @@ def _run(args, out, work):
 
 
 # examples/pocket_corner.nc, carried here so that an installed package (no examples/ folder)
-# plans it too (tests/test_review_readme.py checks that the two are the same)
+# plans it too (tests/test_readme_commands.py checks that the two are the same)
 POCKET_CORNER_NC = """%
 O0100 (fdid-fmi example: a pocket corner with lines and arcs in XY, metric, G94)
 N10 G21 G90 G17 G94

@@ -74,7 +74,7 @@ against 0.287 µm; 22.8 with the default path's r1c2 hold model), the rest 0.59-
 27.4. Measured on the virtual drive: its 12 diagnosis scenarios 0.92-1.29, no note. Another
 machine (ad-hoc script): the virtual clean model on plant2's clean_rigid circle /
 diamond / reversals 1069 / 1166 / 441, plant2's model on the virtual clean held-out trace 1184;
-positions in µm under a mm header about 1000x (tests/test_review_diagnose.py): notes.
+positions in µm under a mm header about 1000x (tests/test_diagnose_inputs.py): notes.
 
 Threshold of ``carried`` (``LOST_MOTION_NOTE_MM``), calibrated on the virtual drive (MIMO r1c1 of
 error and tool position, ad-hoc script): its flexible Y axis, without lost motion, reads 2.7 µm

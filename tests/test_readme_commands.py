@@ -1,4 +1,4 @@
-"""README contract review: the commands and scripts the README names do what it says.
+"""The README contract: the commands and scripts the README names do what it says.
 
 The README as a new user meets it.
 """

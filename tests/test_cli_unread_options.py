@@ -12,7 +12,7 @@ import pytest
 from fdid_fmi.cli import main
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from test_review_diagnose import _ramp_trace  # noqa: E402
+from test_diagnose_inputs import _ramp_trace  # noqa: E402
 
 
 def _exit_code(argv):

@@ -1,4 +1,4 @@
-"""Review of fdid_fmi.plan against hand-derived truths: the geometry the parser reads, the v/a/j
+"""fdid_fmi.plan against hand-derived truths: the geometry the parser reads, the v/a/j
 limits, end points and cycle time of the interpolation, and the contour error of a circle traced
 by drives whose response is known in closed form."""
 import math

@@ -1,4 +1,4 @@
-"""Review of the identification engine with degenerate but plausible traces: each case gives a
+"""The identification engine with degenerate but plausible traces: each case gives a
 finite, sane model or one InputError line naming what is wrong (never a traceback, never a NaN
 model, never a silently wrong one).
 

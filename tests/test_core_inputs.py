@@ -1,5 +1,5 @@
-"""Review of the core modules (trace, model, simulate, signals, metrics, outputs, report): each
-test failed before its fix."""
+"""Careless and hostile inputs to the core modules (trace, model, simulate, signals, metrics,
+outputs, report): each test fails without the code it guards."""
 import json
 import os
 

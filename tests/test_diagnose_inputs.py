@@ -1,4 +1,4 @@
-"""Review of the diagnosis library and the FMU validation path: hostile and careless inputs get one
+"""The diagnosis library and the FMU validation path: hostile and careless inputs get one
 InputError line or a sane result, and a detector that could not run says so."""
 import copy
 
