@@ -238,3 +238,20 @@ def test_an_axis_without_its_measured_position_is_named_not_dropped(capsys, tmp_
     out = capsys.readouterr().out
     assert "note: axis y has no measured position" in out and "--map y.act=COLUMN" in out
     assert "axis x" not in out
+
+
+def test_every_option_with_a_default_shows_it_in_help():
+    """``fdid CMD --help``: each option that has a default (not None, not a flag's False) says it."""
+    import argparse
+
+    from fdid_fmi.cli import _command_parsers, build_parser
+    parser = build_parser()
+    missing = []
+    for sp in _command_parsers(parser.commands.values()):
+        fmt = sp._get_formatter()
+        for action in sp._actions:
+            if not action.option_strings or action.default in (None, False, argparse.SUPPRESS):
+                continue
+            if "default" not in fmt._format_action(action).lower():
+                missing.append(f"{sp.prog} {action.option_strings[-1]}")
+    assert not missing, missing

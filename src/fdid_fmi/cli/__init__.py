@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import copy
 import importlib
 import itertools
 import os
@@ -36,6 +37,24 @@ BUG_REPORT = ("this is a bug in fdid-fmi; please report it to the fdid-fmi maint
               "with --debug")
 
 
+class _Formatter(argparse.HelpFormatter):
+    """Help lines that end with the option's default where it has one (not None, not a flag's
+    False) and the help text does not already say it."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if (not action.option_strings or action.default in (None, False, argparse.SUPPRESS)
+                or "%(default)" in text or "default" in text.lower()):
+            return text
+        return f"{text} (default: %(default)s)" if text else "default: %(default)s"
+
+    def _format_action(self, action):
+        if not action.help and self._get_help_string(action):    # a default but no help text
+            action = copy.copy(action)
+            action.help = self._get_help_string(action)
+        return super()._format_action(action)
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse with a one-line error (no usage block): ``fdid CMD: error: ... (see --help)``,
     and no abbreviation of a long option (``--meth`` for ``--method`` would silently change
@@ -44,7 +63,9 @@ class _Parser(argparse.ArgumentParser):
 
     def __init__(self, *args, **kwargs):
         kwargs["allow_abbrev"] = False
+        kwargs.setdefault("formatter_class", _Formatter)
         super().__init__(*args, **kwargs)
+
 
     def error(self, message):
         if message.endswith("expected one argument"):   # argparse reads '-0.5:2' as an option
