@@ -118,21 +118,17 @@ class Trace:
         if bad.any():
             raise InputError("time is not a finite number", source=src, column="time",
                              row=int(np.argmax(bad)) + 1)
-        dt = np.diff(self.t)
-        if (dt <= 0).any():
-            k = int(np.argmax(dt <= 0))
-            raise InputError(f"time is not strictly increasing ({float(self.t[k]):.9g} then {float(self.t[k + 1]):.9g})",
-                             source=src, column="time", row=k + 2)
-        ts = float(np.median(dt))
-        jit = np.abs(dt - ts) > self.jitter_tol * ts
-        if jit.any():
-            k = int(np.argmax(jit))
-            raise InputError(
-                f"sample time is not steady: step {dt[k]:.6g} s against the median {ts:.6g} s "
-                f"(tolerance {self.jitter_tol:.0%}); resample the trace first",
-                source=src, column="time", row=k + 2)
-        k = off_grid(self.t)
-        if k is not None:
+        fault = time_grid_fault(self.t, self.jitter_tol)
+        if fault is not None:
+            kind, k = fault[0], fault[1]
+            if kind == "order":
+                raise InputError(f"time is not strictly increasing ({float(self.t[k]):.9g} then "
+                                 f"{float(self.t[k + 1]):.9g})", source=src, column="time", row=k + 2)
+            if kind == "jitter":
+                raise InputError(
+                    f"sample time is not steady: step {fault[2]:.6g} s against the median {fault[3]:.6g} s "
+                    f"(tolerance {self.jitter_tol:.0%}); resample the trace first",
+                    source=src, column="time", row=k + 2)
             raise InputError(f"the time stamps drift from a uniform grid (more than half a sample at "
                              f"t = {float(self.t[k]):.6g} s): more than one sample rate; resample the "
                              f"trace first", source=src, column="time", row=k + 1)
@@ -292,6 +288,31 @@ class Trace:
         for name, data in (extra or {}).items():
             channels[name] = Channel(name, (units or {}).get(name, "1"), data)
         return cls(t=t, channels=channels, roles=roles, source=source, meta=dict(meta or {}))
+
+
+def time_grid_fault(t, jitter_tol):
+    """The first fault of a time vector's grid, or None (one rule for :class:`Trace` and the file
+    readers, which word their errors each their own way):
+
+    * ``("order", k)``: t[k + 1] <= t[k];
+    * ``("jitter", k, step, median)``: step k = t[k + 1] - t[k] deviates from the median step by
+      more than ``jitter_tol`` of it;
+    * ``("drift", k)``: stamp k is more than half a sample off the uniform grid (:func:`off_grid`).
+    """
+    dt = np.diff(t)
+    bad = dt <= 0
+    if bad.any():
+        return "order", int(np.argmax(bad))
+    ts = float(np.median(dt))
+    dev = np.abs(dt - ts)
+    jit = dev > jitter_tol * ts
+    del dev
+    if jit.any():
+        k = int(np.argmax(jit))
+        return "jitter", k, float(dt[k]), ts
+    del dt, jit
+    k = off_grid(t)
+    return None if k is None else ("drift", k)
 
 
 def off_grid(t, tol=0.5):

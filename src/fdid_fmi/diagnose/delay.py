@@ -25,7 +25,7 @@ nothing (virtual clean up to 1.095, its 3-sample delay 1.05-1.09; plant2 clean u
 delay 1.13-1.17). But on a model whose own fit was refined, quick refits lose to it at every
 shift: plant2's delay on ``fdid identify``'s default r1c2 hold model reads chi-square 15 for the
 given model and 59-135 for every refit, and nothing is named. Refined refits compare like with
-like (an ad-hoc script, maxiter 25; README):
+like (refits with maxiter 25):
 
 - calibration, the virtual drive: clean runs (5 scenarios x seeds 1, 3) 1.000-1.016 on the
   thesis path's model, 1.000-1.006 on the default path's (15 runs); its 3-sample

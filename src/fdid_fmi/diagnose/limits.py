@@ -67,17 +67,16 @@ against 2.1: r2c2-noI fits the moving residual to 0.138 µm, the rigid model to 
 both leave 0.53 µm in the windows); on plant2 the two paths differ by less than 30 %.
 
 Threshold of ``held_out_unlike`` (``HELD_OUT_UNLIKE``), calibrated on the second plant and measured
-on the virtual drive (an ad-hoc script: each scenario's base model,
-the thesis path's, its held-out / training free-run RMS per channel and validation trace). On
+on the virtual drive (each scenario's base model, the thesis path's, its held-out / training free-run RMS per channel and validation trace). On
 plant2 an unmodelled effect raises it up to 20.2 (the 3-sample dead time on the diamond: 5.79
 against 0.287 µm; 22.8 with the default path's r1c2 hold model), the rest 0.59-4.3: 1.2 x 22.8 =
 27.4. Measured on the virtual drive: its 12 diagnosis scenarios 0.92-1.29, no note. Another
-machine (ad-hoc script): the virtual clean model on plant2's clean_rigid circle /
+machine: the virtual clean model on plant2's clean_rigid circle /
 diamond / reversals 1069 / 1166 / 441, plant2's model on the virtual clean held-out trace 1184;
 positions in µm under a mm header about 1000x (tests/test_diagnose_inputs.py): notes.
 
 Threshold of ``carried`` (``LOST_MOTION_NOTE_MM``), calibrated on the virtual drive (MIMO r1c1 of
-error and tool position, ad-hoc script): its flexible Y axis, without lost motion, reads 2.7 µm
+error and tool position): its flexible Y axis, without lost motion, reads 2.7 µm
 (the tool side's velocity-proportional lag projected on sat(v/v_tilde)), its 20 µm backlash 21.4
 µm: hence 5 µm. Measured on the second plant: its backlash axis reads 16.4 µm against 16.0 µm
 (15 µm of backlash, 1.0 µm of elastic deflection), its flexible Y axis 15.6 µm (the 9 N of

@@ -328,10 +328,7 @@ def run_master(fmu_path, t, inputs, outputs, start_values=None, step_size=None):
     if step_size is None:
         step_size = read_model_description(str(fmu_path)).defaultExperiment.stepSize
     h = float(step_size)
-    sig = np.zeros(len(t), dtype=[("time", float)] + [(k, float) for k in inputs])
-    sig["time"] = t
-    for k, v in inputs.items():
-        sig[k] = v
+    sig = _input_table(t, inputs)
     res = simulate_fmu(str(fmu_path), start_time=float(t[0]), stop_time=float(t[-1]), step_size=h,
                        output_interval=h, input=sig, output=list(outputs),
                        start_values=dict(start_values or {}), validate=False)
@@ -339,6 +336,15 @@ def run_master(fmu_path, t, inputs, outputs, start_values=None, step_size=None):
         raise InputError(f"fmpy.simulate_fmu recorded {len(res)} rows for {len(t)} input samples: "
                          f"the FMU does not step at {h:g} s", source=str(fmu_path))
     return {k: np.asarray(res[k], float) for k in outputs}
+
+
+def _input_table(t, inputs):
+    """``fmpy.simulate_fmu``'s input table: a structured array of ``time`` and one field per input."""
+    sig = np.zeros(len(t), dtype=[("time", float)] + [(k, float) for k in inputs])
+    sig["time"] = t
+    for k, v in inputs.items():
+        sig[k] = v
+    return sig
 
 
 def coarse_step(duration, Ts):
@@ -574,10 +580,7 @@ def _coarse_figures(res, fmu_path, t, table, pos_names, start_values, R, ref, Ts
     if len(t) <= 2 * n:
         res.coarse_step_s = float("nan")      # too short a record for a coarser step
         return
-    sig = np.zeros(len(t), dtype=[("time", float)] + [(k, float) for k in table])
-    sig["time"] = t
-    for k, v in table.items():
-        sig[k] = v
+    sig = _input_table(t, table)
     outs = list(pos_names.values())
 
     def worst(rows, got):

@@ -51,7 +51,7 @@ import numpy as np
 
 from .. import units as U
 from ..errors import InputError
-from ..trace import ROLES, Channel, Trace, off_grid
+from ..trace import ROLES, Channel, Trace, time_grid_fault
 
 MAP_ROLES = ROLES + ("err",)
 TIME_KEYS = ("t", "time")
@@ -504,23 +504,17 @@ def check_time(t, *, source, column, row_of=None, jitter_tol=0.05):
     row_of = row_of or (lambda i: int(i) + 1)
     if t.size < 2:
         raise InputError(f"a trace needs at least 2 samples, got {t.size}", source=source, column=column)
-    dt = np.diff(t)
-    if (dt <= 0).any():
-        k = int(np.argmax(dt <= 0))
+    fault = time_grid_fault(t, jitter_tol)
+    if fault is None:
+        return
+    kind, k = fault[0], fault[1]
+    if kind == "order":
         raise InputError(f"time is not strictly increasing ({float(t[k])!r} s then {float(t[k + 1])!r} s)",
                          source=source, column=column, row=row_of(k + 1))
-    ts = float(np.median(dt))
-    dev = np.abs(dt - ts)
-    jit = dev > jitter_tol * ts
-    del dev
-    if jit.any():
-        k = int(np.argmax(jit))
-        raise InputError(f"sample time is not steady: step {dt[k]:.6g} s against the median {ts:.6g} s "
+    if kind == "jitter":
+        raise InputError(f"sample time is not steady: step {fault[2]:.6g} s against the median {fault[3]:.6g} s "
                          f"(tolerance {jitter_tol:.0%}); resample the trace first",
                          source=source, column=column, row=row_of(k + 1))
-    del dt, jit
-    k = off_grid(t)
-    if k is not None:
-        raise InputError(f"the time stamps drift from a uniform grid (more than half a sample at "
-                         f"t = {float(t[k]):.6g} s): more than one sample rate; resample the trace first",
-                         source=source, column=column, row=row_of(k))
+    raise InputError(f"the time stamps drift from a uniform grid (more than half a sample at "
+                     f"t = {float(t[k]):.6g} s): more than one sample rate; resample the trace first",
+                     source=source, column=column, row=row_of(k))

@@ -92,7 +92,7 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
                          source=src, column="layout")
     text = read_text_file(path)
     # the first lines decide the layout; the data body is parsed in one pass (_parse_body)
-    entries, body = _head_entries(text)
+    entries, offsets = _head_entries(text)
     if not entries:
         raise InputError("file is empty (no header and no data rows)", source=src)
 
@@ -177,7 +177,7 @@ def read_text(path, mapping=None, units=None, *, layout="auto", axes=None, delim
     if len(entries) <= first_data:
         raise InputError("the file has a header line but no data rows", source=src,
                          row=entries[0][0])
-    parsed = None if decimal_comma else _parse_body(text, body[first_data], entries[first_data][0],
+    parsed = None if decimal_comma else _parse_body(text, offsets[first_data], entries[first_data][0],
                                                     len(names), delim)
     if parsed is None:
         data_entries = list(_all_entries(text))[first_data:]
