@@ -19,7 +19,7 @@ import numpy as np
 
 from timing import timed
 
-from fdid_fmi import identify as idf
+from fdid_fmi.identify import identify_siso
 from fdid_fmi.fmu import export_fmu
 from fdid_fmi.model import DriveModel
 from fdid_fmi.plan import read_program
@@ -57,7 +57,7 @@ def main():
     for ax in ("x", "y"):
         tr = simulate_machine(MachineConfig(axes=[cfg.axis(ax)], Ts=cfg.Ts),
                               tj.linear_moves(n_moves=20, axes=(ax,), Ts=cfg.Ts, seed=1), seed=1)
-        ms.append(idf.identify_siso(tr, ax, seed=0))
+        ms.append(identify_siso(tr, ax, seed=0))
     model = DriveModel.combine(ms, method="pole-search")
     tmp = Path(tempfile.mkdtemp(prefix="bench_plan_"))
     fmu = export_fmu(model, tmp / "drive.fmu")

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from fdid_fmi.cli import main
-from fdid_fmi.cli.identify import structure_is_auto, summary
+from fdid_fmi.cli.identify import summary
+from fdid_fmi.pipeline.identify import structure_is_auto
 from fdid_fmi.errors import InputError
 from fdid_fmi.identify import StructureChoice, identify_auto, identify_full_ls, identify_quasi_static
 from fdid_fmi.identify.choose_structure import CandidateScore, choose

@@ -2,6 +2,7 @@
 (``fdid diagnose --val-range`` without ``--val``, ``--exclude`` of a channel no trace has), a
 held-out trace that is the training trace is refused, ... Each refusal is one error line, exit 2,
 before any fit (a guard replaces the diagnosis, so a regression fails fast instead of fitting)."""
+import importlib
 import shutil
 import sys
 from pathlib import Path
@@ -51,7 +52,8 @@ def no_fit(monkeypatch):
     """The diagnosis itself must not be reached: each case is refused before it."""
     def reached(*a, **k):
         raise AssertionError("the diagnosis started: the input was not refused")
-    monkeypatch.setattr("fdid_fmi.diagnose.diagnose", reached)
+    # fdid_fmi.diagnose names the API function; the subpackage's diagnose is what it runs
+    monkeypatch.setattr(importlib.import_module("fdid_fmi.diagnose"), "diagnose", reached)
 
 
 # ------------------------------------------------------------------ 1. --val-range without --val

@@ -108,7 +108,7 @@ def test_random_map_tokens(tokens):
     """--map tokens: a mapping whose axis names are identifiers, or one-line InputError."""
     import re
 
-    from fdid_fmi.cli.mapping import parse_mapping
+    from fdid_fmi.pipeline.traces import parse_mapping
     try:
         out = parse_mapping(tokens)
     except FdidError as exc:

@@ -11,7 +11,8 @@ import warnings
 import numpy as np
 import pytest
 
-from fdid_fmi import identify as idf
+from fdid_fmi.identify import (identify_auto, identify_full_ls, identify_mimo, identify_quasi_static,
+                               identify_siso, mimo_structure)
 from fdid_fmi.errors import InputError
 from fdid_fmi.identify.structure import Bounds
 from fdid_fmi.trace import Channel, Trace
@@ -71,7 +72,7 @@ def test_huge_zeta_bound_warns_nothing(trace):
     with warnings.catch_warnings():
         warnings.simplefilter("error", RuntimeWarning)
         b = Bounds([(0.1, 450.0)], [(0.5, 450.0)], [(0.1, 1e10)])
-        m = idf.identify_siso(trace, bounds=b, maxiter=3, same_sample="hold", refine=False)
+        m = identify_siso(trace, bounds=b, maxiter=3, same_sample="hold", refine=False)
     assert np.all(np.isfinite(m.A)) and np.all(np.isfinite(m.C))
 
 
@@ -85,10 +86,10 @@ def with_channel(tr, name, data):
 
 
 IDENTIFIERS = {
-    "quasi-static": lambda tr: idf.identify_quasi_static(tr),
-    "full-ls": lambda tr: idf.identify_full_ls(tr, "x"),
-    "pole-search": lambda tr: idf.identify_siso(tr, "x", maxiter=2, same_sample="hold", refine=False),
-    "auto": lambda tr: idf.identify_auto(tr, "x", same_sample="hold", maxiter=2, workers=1),
+    "quasi-static": lambda tr: identify_quasi_static(tr),
+    "full-ls": lambda tr: identify_full_ls(tr, "x"),
+    "pole-search": lambda tr: identify_siso(tr, "x", maxiter=2, same_sample="hold", refine=False),
+    "auto": lambda tr: identify_auto(tr, "x", same_sample="hold", maxiter=2, workers=1),
 }
 
 
@@ -130,7 +131,7 @@ def test_quasi_static_refuses_gains_a_cruise_cannot_carry():
     # the acceleration and jerk of a cruise are rounding noise (1e-11 mm/s^2); the LS scaled them
     # up and reported K_acc ~ 1e8 s^2 (a prediction of km for any real acceleration)
     with pytest.raises(InputError, match=r"cruise, column 'x.cmd': the commanded acceleration .* K_acc"):
-        idf.identify_quasi_static(cruise())
+        identify_quasi_static(cruise())
 
 
 @pytest.mark.parametrize("method", ["quasi-static", "full-ls"])
@@ -145,11 +146,11 @@ def test_too_few_samples_are_refused(trace, method):
 
 def test_full_ls_refuses_a_cruise():
     with pytest.raises(InputError, match=r"the commanded acceleration .* \(alpha_2, beta_2\) cannot be identified"):
-        idf.identify_full_ls(cruise(), "x")
+        identify_full_ls(cruise(), "x")
 
 
 def test_quasi_static_on_a_jerk_limited_move_is_still_identified(trace):
-    m = idf.identify_quasi_static(trace)
+    m = identify_quasi_static(trace)
     assert all(np.isfinite(v) for v in m.gains["x"].values())
     assert 0.0 < m.gains["x"]["K_vel"] < 0.1
 
@@ -164,15 +165,15 @@ def with_extra(tr, name, data):
 def test_constant_external_input_is_refused(trace):
     # its regressors were rounding noise (1e-15) scaled up into numerators of 1e13: accepted, and
     # a worse model than without it
-    st = idf.mimo_structure(("x",), externals=("pulses_N",), same_sample="hold")
+    st = mimo_structure(("x",), externals=("pulses_N",), same_sample="hold")
     with pytest.raises(InputError, match=r"column 'pulses_N': the external input is constant \(3\)"):
-        idf.identify_mimo(with_extra(trace, "pulses_N", np.full(trace.n, 3.0)), st, maxiter=2)
+        identify_mimo(with_extra(trace, "pulses_N", np.full(trace.n, 3.0)), st, maxiter=2)
 
 
 def test_varying_external_input_is_used(trace):
-    st = idf.mimo_structure(("x",), externals=("pulses_N",), same_sample="hold")
+    st = mimo_structure(("x",), externals=("pulses_N",), same_sample="hold")
     pulses = np.where(np.sin(2 * np.pi * trace.t) > 0, 1.0, -1.0)
-    m = idf.identify_mimo(with_extra(trace, "pulses_N", pulses), st, maxiter=2, refine=False)
+    m = identify_mimo(with_extra(trace, "pulses_N", pulses), st, maxiter=2, refine=False)
     assert "pulses_N" in [p.name for p in m.inputs]
     assert np.all(np.isfinite(m.C)) and np.all(np.isfinite(m.D))
 
@@ -199,7 +200,7 @@ def test_absurd_fixed_v_tilde_is_not_blamed_on_a_column_of_the_trace(trace):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         with pytest.raises(InputError, match="no usable model") as exc:
-            idf.identify_siso(trace, "x", v_tilde=1e308, same_sample="hold", maxiter=2)
+            identify_siso(trace, "x", v_tilde=1e308, same_sample="hold", maxiter=2)
     assert "v_tilde" in str(exc.value) and "column 'C'" not in str(exc.value)
 
 
@@ -227,7 +228,7 @@ def test_v_tilde_check_uses_the_velocity_the_friction_is_built_from(capsys, tmp_
     # builds sat(v/v_tilde) from the command, and a v_tilde far below its speed must not be refused
     # for the missing 'act' channel
     t = Trace.from_arrays(trace.t, {"x": {"cmd": trace.cmd("x"), "tool": trace.act("x")}}, source="<noact>")
-    from fdid_fmi.cli.identify import check_v_tilde
+    from fdid_fmi.pipeline.identify import check_v_tilde
     check_v_tilde(1.0, [t], ["x"])                           # 1 mm/s against ~150 mm/s: accepted
     with pytest.raises(InputError, match="largest speed of axis 'x'"):
         check_v_tilde(1e3, [t], ["x"])
@@ -273,9 +274,9 @@ def test_locked_pair_the_sampled_model_cannot_have_is_refused(capsys, tmp_path, 
 
 
 def test_locked_pair_with_zero_damping_is_refused_by_the_library(trace):
-    st = idf.mimo_structure(("x",), n_real=1, n_complex=0, locked_complex=[(12.0, 0.0)], same_sample="hold")
+    st = mimo_structure(("x",), n_real=1, n_complex=0, locked_complex=[(12.0, 0.0)], same_sample="hold")
     with pytest.raises(InputError, match="expected a finite zeta > 0"):
-        idf.identify_mimo(trace, st, maxiter=2)
+        identify_mimo(trace, st, maxiter=2)
 
 
 # ----------------------------------------------------------------------------- search settings
@@ -285,7 +286,7 @@ def test_bad_search_settings_of_the_library_are_named(trace, kw, word):
     # numpy's ValueError (seed -1 / 1.5, direct's maxfun), or silence: maxiter -1 and popsize -2 ran
     k = {"maxiter": 2, "same_sample": "hold", "refine": False, **kw}
     with pytest.raises(InputError, match=rf"column '{word}': {word} must be"):
-        idf.identify_siso(trace, **k)
+        identify_siso(trace, **k)
 
 
 def test_multistart_reads_maxiter():
@@ -324,7 +325,7 @@ def test_baseline_settings_zero_or_nan_are_refused_not_defaulted(trace, method, 
     # cutoff_hz=0 and v_tilde=0 silently became the defaults ("x or default"), p_min_hz=-1
     # disabled the pole constraint and p_min_hz=nan raised numpy's LinAlgError
     name = next(iter(kw))
-    fn = idf.identify_quasi_static if method == "quasi-static" else lambda tr, **k: idf.identify_full_ls(tr, "x", **k)
+    fn = identify_quasi_static if method == "quasi-static" else lambda tr, **k: identify_full_ls(tr, "x", **k)
     with pytest.raises(InputError, match=rf"column '{name}': {name} must be a finite number > 0"):
         fn(trace, **kw)
 
@@ -371,7 +372,7 @@ def test_full_ls_does_not_depend_on_where_the_axis_is():
     errs = []
     for off in (0.0, 5.0, 1e4):
         tr = drive_trace(offset=off)
-        m = idf.identify_full_ls(tr, "x")
+        m = identify_full_ls(tr, "x")
         errs.append(rms(simulate(m, tr).axes["x"]["position"] - tr.act("x")))
     assert np.isfinite(errs).all(), errs
     assert np.allclose(errs, errs[0], rtol=1e-3), errs

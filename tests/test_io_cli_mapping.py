@@ -4,7 +4,7 @@ import argparse
 import numpy as np
 import pytest
 
-from fdid_fmi.cli.mapping import add_trace_arguments, parse_mapping, parse_units, trace_from_args
+from fdid_fmi.pipeline.traces import add_trace_arguments, parse_mapping, parse_units, trace_from_args
 from fdid_fmi.errors import InputError
 
 

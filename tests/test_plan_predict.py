@@ -24,7 +24,7 @@ LIMITS = {a: AxisLimits(100, 2000, 1e5) for a in "xyz"}
 @pytest.fixture(scope="module")
 def machine():
     """The virtual Deckel-Maho-like machine and a model identified from its traces (once)."""
-    from fdid_fmi import identify as idf
+    from fdid_fmi.identify import identify_siso
     from fdid_fmi.model import DriveModel
     from fdid_fmi.virtual import MachineConfig, presets, simulate_machine
     from fdid_fmi.virtual import trajectories as tj
@@ -33,7 +33,7 @@ def machine():
     for ax in ("x", "y"):
         tr = simulate_machine(MachineConfig(axes=[cfg.axis(ax)], Ts=cfg.Ts),
                               tj.linear_moves(n_moves=6, axes=(ax,), Ts=cfg.Ts, seed=1), seed=1)
-        ms.append(idf.identify_siso(tr, ax, seed=0))
+        ms.append(identify_siso(tr, ax, seed=0))
     return cfg, DriveModel.combine(ms, method="pole-search")
 
 

@@ -154,7 +154,7 @@ def test_block_just_within_the_limit_is_not_refused():
 def test_arc_peaks_and_samples_in_chunks_equal_the_whole_block(monkeypatch):
     """The arc's fine-grid peaks and the block's samples, CHUNK at a time, are those of the
     whole block at once (the same numbers: the interpolation is unchanged)."""
-    import fdid_fmi.plan.interpolate as I
+    from fdid_fmi.plan import interpolate as I
     from fdid_fmi.virtual.trajectories import scurve
     prog = parse_program("G21 G90 G17\nG1 X10 F3000\nG3 X0 Y10 I-10 J0\nG2 X-5 Y5 R5 Z1\n",
                          source="arc.nc", start=[0, 0, 0])

@@ -174,14 +174,14 @@ def test_recorded_limits_are_the_interpolators_and_ignore_one_bad_setpoint():
 
 
 def test_identification_records_the_limits_of_its_traces():
-    from fdid_fmi import identify as idf
+    from fdid_fmi.identify import identify_full_ls
     from fdid_fmi.identify.limits import recorded_limits
     from fdid_fmi.virtual import MachineConfig, presets, simulate_machine
     from fdid_fmi.virtual import trajectories as tj
     cfg = presets.deckel_maho_like()
     tr = simulate_machine(MachineConfig(axes=[cfg.axis("x")], Ts=cfg.Ts),
                           tj.linear_moves(n_moves=4, axes=("x",), Ts=cfg.Ts, seed=2), seed=2)
-    m = idf.identify_full_ls(tr, "x")
+    m = identify_full_ls(tr, "x")
     assert m.limits == recorded_limits(tr, ["x"]) and m.limits["x"]["v_mm_s"] > 10
 
 

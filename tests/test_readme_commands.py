@@ -70,13 +70,13 @@ import sys
 from pathlib import Path
 import fdid_fmi
 assert Path(fdid_fmi.__file__).resolve().parents[1] == Path(sys.argv[1]).resolve(), fdid_fmi.__file__
-from fdid_fmi import identify as idf
+from fdid_fmi.identify import identify_full_ls
 from fdid_fmi.cli.demo import _plan_example
 from fdid_fmi.model import DriveModel
 from fdid_fmi.virtual import MachineConfig, presets, simulate_machine
 from fdid_fmi.virtual import trajectories as tj
 cfg = presets.deckel_maho_like()
-ms = [idf.identify_full_ls(simulate_machine(MachineConfig(axes=[cfg.axis(a)], Ts=cfg.Ts),
+ms = [identify_full_ls(simulate_machine(MachineConfig(axes=[cfg.axis(a)], Ts=cfg.Ts),
       tj.linear_moves(n_moves=4, axes=(a,), Ts=cfg.Ts, seed=1), seed=1), a) for a in ("x", "y")]
 _plan_example(DriveModel.combine(ms, method="full-ls"), Path(sys.argv[2]))
 """

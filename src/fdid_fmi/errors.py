@@ -1,5 +1,7 @@
 """Errors raised for bad user input: each names the file, column/parameter and row."""
+import contextlib
 import math
+from pathlib import Path
 
 
 def one_line(text):
@@ -54,3 +56,17 @@ def finite_number(value, name, positive=False):
         raise InputError(f"{name} must be a finite number{' > 0' if positive else ''}, got {value!r}",
                          column=name)
     return v
+
+
+@contextlib.contextmanager
+def naming(source, replaces=None):
+    """Inside this block, an InputError that names no file (or names ``replaces``: the path a
+    reader resolved from what the user wrote) is re-raised naming ``source`` (e.g. a model
+    refused by export names the model file it came from)."""
+    try:
+        yield
+    except InputError as exc:
+        named = exc.source and not (replaces is not None and Path(str(exc.source)) == Path(replaces))
+        if named or source is None:
+            raise
+        raise InputError(exc.message, source=str(source), column=exc.column, row=exc.row) from None

@@ -302,6 +302,26 @@ class DriveModel:
         from .outputs import atomic_write
         return atomic_write(path, json.dumps(self.to_dict(), indent=1))
 
+    @classmethod
+    def load(cls, path):
+        """Read a state-space model JSON written by :meth:`save` (InputError naming the file when
+        it holds no state-space model: a quasi-static one is read with :func:`load_model`)."""
+        model = load_model(path)
+        if not isinstance(model, cls):
+            raise InputError("holds a quasi-static model, not a state-space one (read it with "
+                             "fdid_fmi.load_model)", source=str(path))
+        return model
+
+    @property
+    def records(self):
+        """How the model was identified, typed: one
+        :class:`~fdid_fmi.identify.record.PoleSearchRecord` per pole-search / MIMO block (one for
+        the model of one axis, one per axis of a combined per-axis model); empty for a Full LS
+        model, whose record is ``identification["pole_constraints"]``."""
+        from .identify.record import PoleSearchRecord
+        ident = self.identification or {}
+        return [PoleSearchRecord.from_dict(b) for b in ident.get("blocks", [ident]) if b.get("structure")]
+
     def copy(self):
         return DriveModel.from_dict(json.loads(json.dumps(self.to_dict())))
 
@@ -391,6 +411,14 @@ class QuasiStaticModel:
         """Write the model JSON atomically (complete or not at all; :mod:`fdid_fmi.outputs`)."""
         from .outputs import atomic_write
         return atomic_write(path, json.dumps(self.to_dict(), indent=1))
+
+    @classmethod
+    def load(cls, path):
+        """Read a quasi-static model JSON written by :meth:`save`."""
+        model = load_model(path)
+        if not isinstance(model, cls):
+            raise InputError("holds a state-space model, not a quasi-static one", source=str(path))
+        return model
 
     @classmethod
     def from_dict(cls, d, source="<dict>"):

@@ -5,7 +5,7 @@ One kind of pool for every place that fits in parallel: ``fdid identify``'s stru
 one thread: the pool already keeps every core busy, and the models' matrices are small, so BLAS
 threads on top of it only compete for the cores (README, "Refits side by side": 14 % less wall
 time for ``fdid diagnose --jobs 2`` on a 2-core machine). The ``fdid`` command does the same
-while it runs a command (:func:`fdid_fmi.cli.main`, the previous limits restored after), so
+while it runs a command (its ``main``, the previous limits restored after), so
 ``--jobs 1`` and ``--jobs 2`` give the same numbers to the last bit; a Python caller's process
 keeps whatever threads it has. Dask's nanny starts its workers with one thread too (its
 ``distributed.nanny.pre-spawn-environ`` setting).

@@ -7,7 +7,7 @@ root: ``.venv/bin/python tests/data/make_xy_twin_model.py`` (about a minute).
 """
 from pathlib import Path
 
-from fdid_fmi import identify as idf
+from fdid_fmi.identify import identify_siso
 from fdid_fmi.model import DriveModel
 from fdid_fmi.virtual import MachineConfig, presets, simulate_machine
 from fdid_fmi.virtual import trajectories as tj
@@ -17,7 +17,7 @@ models = []
 for ax in ("x", "y"):
     tr = simulate_machine(MachineConfig(axes=[cfg.axis(ax)], Ts=cfg.Ts),
                           tj.linear_moves(n_moves=6, axes=(ax,), Ts=cfg.Ts, seed=1), seed=1)
-    models.append(idf.identify_siso(tr, ax, seed=0))
+    models.append(identify_siso(tr, ax, seed=0))
 model = DriveModel.combine(models, method="pole-search")
 out = Path(__file__).with_name("xy_twin_model.json")
 model.save(out)

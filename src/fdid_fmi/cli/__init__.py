@@ -17,16 +17,14 @@ The traceback is printed only with the global ``--debug`` flag (``fdid --debug C
 from __future__ import annotations
 
 import argparse
-import contextlib
 import copy
 import importlib
 import itertools
 import os
 import sys
 import traceback
-from pathlib import Path
 
-from ..errors import FdidError, InputError
+from ..errors import FdidError
 from ..workers import one_blas_thread
 
 # command modules, in the order their commands are listed in --help
@@ -135,20 +133,6 @@ def _parse(parser, argv):
             p, rest = act.choices[name], rest[rest.index(name) + 1:]
         p.error(f"unrecognized arguments: {' '.join(extra)}")
     return args
-
-
-@contextlib.contextmanager
-def naming(source, replaces=None):
-    """Inside this block, an InputError that names no file (or names ``replaces``: the path a
-    reader resolved from what the user wrote) is re-raised naming ``source`` (e.g. a model
-    refused by export names the model file it came from)."""
-    try:
-        yield
-    except InputError as exc:
-        named = exc.source and not (replaces is not None and Path(str(exc.source)) == Path(replaces))
-        if named or source is None:
-            raise
-        raise InputError(exc.message, source=str(source), column=exc.column, row=exc.row) from None
 
 
 def _one_line(text):

@@ -20,8 +20,8 @@ import json
 from pathlib import Path
 
 from ..errors import InputError, one_line
-from .argtypes import finite_float
-from .mapping import add_trace_arguments, trace_from_args
+from ..pipeline.argtypes import finite_float
+from ..pipeline.traces import add_trace_arguments, trace_from_args
 
 SENSOR_KEYS = {"cols", "t", "unit", "axes", "name", "sign"}
 

@@ -23,7 +23,7 @@ from ..metrics import contour_error, rms_max_um
 from ..errors import InputError
 from ..model import DriveModel, jsonable
 from ..outputs import atomic_write
-from .argtypes import int_in
+from ..pipeline.argtypes import int_in
 
 
 def register(sub):
@@ -66,12 +66,12 @@ def _default_emps_folder():
 
 
 def _emps_case(folder):
-    from ..io import read_trace
+    from ..api import read_trace
     folder = Path(folder)
     train = read_trace(folder / "DATA_EMPS.mat")
     # the PULSES record carries a force the qg-only model cannot know (see `fdid diagnose`)
     val = {"DATA_EMPS (training)": train, "DATA_EMPS_PULSES": read_trace(folder / "DATA_EMPS_PULSES.mat")}
-    return "EMPS drive benchmark (real data)", {"x": train}, val, {"integral_action": False}
+    return "EMPS drive benchmark (real data)", {"x": train}, val, {"no_integral_action": True}
 
 
 @contextlib.contextmanager
@@ -124,10 +124,8 @@ def run(args):
 
 def _run(args, out, work):
     """The demo; files are written into ``work`` (see :func:`staged_output`), named as ``out``."""
-    from .. import identify as idf
-    from ..fmu import export_fmu, validate_fmu
+    from ..api import export_fmu, identify, simulate, validate
     from ..report import Report, add_model_section, decimate
-    from ..simulate import simulate
 
     t0 = time.perf_counter()
     if args.emps:
@@ -143,14 +141,15 @@ def _run(args, out, work):
     models, baselines = [], {"full-ls": [], "quasi-static": []}
     for ax, tr in train.items():
         t1 = time.perf_counter()
-        m = idf.identify_siso(tr, ax, seed=args.seed, **kw)
-        ident = m.identification
-        print(f"  {ax}: pole search {time.perf_counter() - t1:.1f} s -> p {ident['real_hz'][0]:.2f} Hz, "
-              f"omega {ident['complex_hz_zeta'][0][0]:.2f} Hz, zeta {ident['complex_hz_zeta'][0][1]:.3f}, "
-              f"v_tilde {ident['v_tilde_mm_s'][ax]:.3g} mm/s")
+        # the thesis's SISO pole search (rigid structure)
+        m = identify(tr, "pole-search", axes=[ax], structure="rigid", seed=args.seed, **kw)
+        rec = m.records[0]
+        print(f"  {ax}: pole search {time.perf_counter() - t1:.1f} s -> p {rec.real_hz[0]:.2f} Hz, "
+              f"omega {rec.complex_hz_zeta[0][0]:.2f} Hz, zeta {rec.complex_hz_zeta[0][1]:.3f}, "
+              f"v_tilde {rec.v_tilde_mm_s[ax]:.3g} mm/s")
         models.append(m)
-        baselines["full-ls"].append(idf.identify_full_ls(tr, ax))
-        baselines["quasi-static"].append(idf.identify_quasi_static(tr, [ax]))
+        baselines["full-ls"].append(identify(tr, "full-ls", axes=[ax]))
+        baselines["quasi-static"].append(identify(tr, "quasi-static", axes=[ax]))
     model = models[0] if len(models) == 1 else DriveModel.combine(models, method="pole-search")
     model.save(work / "model.json")
     full_ls = (baselines["full-ls"][0] if len(models) == 1
@@ -158,7 +157,7 @@ def _run(args, out, work):
     qs = baselines["quasi-static"]
 
     # ---- FMU + validation
-    fmu = export_fmu(model, work / "drive.fmu")
+    fmu = export_fmu(model, work / "drive.fmu").path
     print(f"  FMU: {out / fmu.name} ({fmu.stat().st_size / 1024:.1f} KiB)")
     rep = Report(f"fdid demo: {title}")
     rep.add_text(f"Identified with the SISO pole search with LS projection (thesis ch. 4.3) per axis; "
@@ -167,7 +166,7 @@ def _run(args, out, work):
     rows, summary = [], {"title": title, "validation": {}}
     vrs = {}
     for name, tr in val.items():
-        vr = validate_fmu(fmu, tr, model=model)
+        vr = validate(fmu, tr, model=model)
         vr.fmu = str(out / fmu.name)      # the file as it will be named, not the staging copy
         vrs[name] = vr
         print(f"\n  validation on {name}: fmpy problems {len(vr.problems)}, max |FMU - reference| = "
@@ -227,14 +226,15 @@ N90 M30
 def _plan_example(model, out, shown=None):
     """Plan the example program ``examples/pocket_corner.nc`` with the identified model; write
     ``plan.html`` into ``out`` (printed as in ``shown``, default ``out``)."""
-    from ..plan.interpolate import AxisLimits, interpolate
+    from ..api import plan
     from ..plan.ncprogram import parse_program
-    from ..plan.predict import predict
     from ..plan.reporting import plan_report
     nc = Path("examples/pocket_corner.nc")
     prog = parse_program(POCKET_CORNER_NC, source=str(nc))
-    lim = {a: AxisLimits(100.0, 2000.0, 1e5) for a in ("x", "y", "z")}
-    pr = predict(interpolate(prog, lim, model.Ts), model=model, tol_mm=0.02, program=prog)
+    res = plan(model, prog, tol_mm=0.02, limits={a: (100.0, 2000.0, 1e5) for a in ("x", "y", "z")},
+               in_position_mm=0)
+    pr = res.prediction
+    pr.interp.info.pop("limit_sources", None)       # the demo's own limits, said in the line below
     rep = plan_report(prog, pr, model=None, tol_mm=0.02)
     rep.write(out / "plan.html")
     s = pr.summary

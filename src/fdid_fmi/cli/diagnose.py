@@ -10,11 +10,11 @@ from __future__ import annotations
 import json
 import sys
 
-from ..errors import InputError
+from ..errors import InputError, naming
 from ..model import DriveModel, load_model
 from ..outputs import atomic_write, check_output, same_file
-from .argtypes import fraction, int_in
-from .mapping import add_trace_arguments, single_range, trace_from_args
+from ..pipeline.argtypes import fraction, int_in
+from ..pipeline.traces import add_trace_arguments, single_range, trace_from_args
 
 
 def register(sub):
@@ -108,7 +108,7 @@ def _refuse_unknown_exclude(exclude, traces):
 
 
 def run(args):
-    from ..diagnose import diagnose
+    from ..api import diagnose
     from ..diagnose.reporting import diagnosis_report, fmt_params, fmu_check
     _check_outputs(args)
     if args.val_range and not args.val:     # it cuts only --val: not silently ignored
@@ -119,7 +119,6 @@ def run(args):
         raise InputError(f"--max-steps must be in 1 .. 20, got {args.max_steps}", column="--max-steps")
     if not 1 <= args.maxiter <= 10000:
         raise InputError(f"--maxiter must be in 1 .. 10000, got {args.maxiter}", column="--maxiter")
-    from . import naming
     from ..diagnose.augment import recipe_from_model
     from ..diagnose.loop import MIN_SAMPLES, split_blocks
     model = load_model(args.model)
@@ -146,7 +145,7 @@ def run(args):
     # an empty list ("" or ",") is refused by diagnose(); it does not mean "every detector"
     dets = [d.strip() for d in args.detectors.split(",") if d.strip()] if args.detectors is not None else None
     diag = diagnose(model, train, val, detectors=dets, min_gain=args.min_gain, max_loss=args.max_loss,
-                    max_steps=args.max_steps, maxiter=args.maxiter, exclude=args.exclude, workers=args.jobs,
+                    max_steps=args.max_steps, maxiter=args.maxiter, exclude=args.exclude, jobs=args.jobs,
                     progress=lambda m: print(f"  {m}", file=sys.stderr))
     fmu = fmu_check(diag) if args.fmu else None
     if diag.split:

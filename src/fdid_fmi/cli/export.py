@@ -3,10 +3,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import InputError, naming
 from ..model import load_model
 from ..outputs import check_output
-from . import naming
 
 
 def register(sub):
@@ -30,7 +29,7 @@ def register(sub):
 
 
 def run(args):
-    from ..fmu import export_fmu
+    from ..api import export_fmu
     platforms = [s.strip() for s in args.platforms.split(",") if s.strip()]
     if not platforms:
         raise InputError(f"--platforms '{args.platforms}' names no platform (linux64, win64)",
@@ -42,9 +41,8 @@ def run(args):
     check_output(out, inputs=[args.model], what="FMU", suffix=".fmu")
     model = load_model(args.model)
     with naming(args.model):
-        path = export_fmu(model, out, fmi_version=int(args.fmi), platforms=platforms,
-                          backend=args.backend, model_identifier=args.name)
-    size = path.stat().st_size
+        res = export_fmu(model, out, fmi=int(args.fmi), platforms=platforms, backend=args.backend,
+                         name=args.name)
     what = "pythonfmu" if args.backend == "python" else ", ".join(platforms)
-    print(f"FMI {args.fmi} co-simulation FMU written to {path} ({size / 1024:.1f} KiB; {what})")
+    print(f"FMI {args.fmi} co-simulation FMU written to {res.path} ({res.size_bytes / 1024:.1f} KiB; {what})")
     return 0

@@ -20,7 +20,7 @@ import math
 from pathlib import Path
 
 from ..errors import InputError
-from .argtypes import finite_float, fraction
+from ..pipeline.argtypes import finite_float, fraction
 
 
 def register(sub):
@@ -52,14 +52,14 @@ def register(sub):
     p.add_argument("--json", default=None, help="JSON with every table and figure's data")
     p.add_argument("--csv", default=None, help="commanded and predicted positions, errors per sample")
     p.add_argument("--start", default="0,0,0", help="position before the first block, x,y,z [mm]")
-    from .mapping import add_trace_arguments
+    from ..pipeline.traces import add_trace_arguments
     add_trace_arguments(p)
     p.set_defaults(func=run)
 
 
 def _ranged_trace(path, args):
     """A trace of --limits-from / --commands, cut to --range when one is given (one range)."""
-    from .mapping import single_range, trace_from_args
+    from ..pipeline.traces import single_range, trace_from_args
     return single_range(trace_from_args(path, args), "one --range for fdid plan's trace")
 
 
@@ -106,7 +106,7 @@ def _check_options(args):
         raise InputError(f"{trace_opts[0]} reads a trace: give --limits-from TRACE or --commands TRACE",
                          column=trace_opts[0])
     if trace_opts:
-        from .mapping import parse_mapping, parse_ranges, parse_units
+        from ..pipeline.traces import parse_mapping, parse_ranges, parse_units
         parse_mapping(args.map)
         parse_units(args.unit)
         parse_ranges(args.range)
@@ -126,109 +126,23 @@ def _check_options(args):
     return start, lim
 
 
-def _limits(args, given, axes_needed, model, twin_axes):
-    """The limits of every axis the program moves, and where each came from.
-
-    In order of precedence: ``--limits``, ``--limits-from TRACE``, the limits the model recorded
-    from its identification traces (``DriveModel.limits``). An axis the program moves that the
-    twin does not model (Z on an XY twin) and that none of these gives follows its command
-    ideally: it gets the slowest of the twin's axes' limits, said in the summary and the report.
-
-    Returns
-    -------
-    lim : dict axis -> AxisLimits;  origin : dict axis -> text
-    """
-    from ..plan.interpolate import AxisLimits, limits_from_trace
-    lim, origin = {}, {}
-    src = args.model or f"{args.fmu}:resources/model.json"
-    for a, d in (model.limits or {}).items():
-        lim[a] = AxisLimits(d["v_mm_s"], d["a_mm_s2"], d["j_mm_s3"])
-        origin[a] = f"recorded in the model from its identification traces ({d.get('method', '')})"
-    if args.limits_from:
-        for a, v in limits_from_trace(_ranged_trace(args.limits_from, args)).items():
-            lim[a], origin[a] = v, f"--limits-from {args.limits_from}"
-    for a, v in given.items():
-        lim[a], origin[a] = v, "--limits"
-    missing = [a for a in axes_needed if a in twin_axes and a not in lim]
-    if missing:
-        why = ("records none (a model saved before format version 3, which records the feed, acceleration "
-               "and jerk of its identification traces)" if not model.limits else
-               "records none for them (its identification traces did not move them)")
-        raise InputError(f"the program moves axes {missing}, which have no limits: {src} {why}: give --limits "
-                         f"V,A,J (mm/s, mm/s^2, mm/s^3) or AXIS=V,A,J, or --limits-from TRACE"
-                         + (", or identify the model again" if not model.limits else ""),
-                         source=args.program, column="--limits")
-    known = [lim[a] for a in twin_axes if a in lim]
-    for a in axes_needed:
-        if a not in lim:        # not modelled and not given: it follows its command ideally
-            lim[a] = AxisLimits(min(x.v for x in known), min(x.a for x in known), min(x.j for x in known))
-            origin[a] = ("default for an axis the twin does not model: the slowest of the twin's axes' "
-                         "limits (give --limits AXIS=V,A,J for its own)")
-    return lim, origin
-
-
 def run(args):
     import numpy as np
-    from ..model import DriveModel, load_model
-    from ..plan import read_program
-    from ..plan.interpolate import IN_POSITION_MM, InPosition, commands_from_trace, interpolate
-    from ..plan.optimize import check_optimisable
-    from ..plan.predict import cutting_contour_max_um, fmu_axes, model_from_fmu, predict
-    from ..simulate import fits_sample_time
+    from ..api import plan
+    from ..plan.predict import cutting_contour_max_um
     from ..plan.reporting import plan_report, words_summary
 
     start, given_limits = _check_options(args)
-    prog = read_program(args.program, start=start)
-    if args.model:
-        model = load_model(args.model)
-        if not isinstance(model, DriveModel):
-            raise InputError("plan needs a state-space model (identify with pole-search, mimo or full-ls)",
-                             source=args.model)
-        Ts, axes, fmu = model.Ts, model.axes, None
-    else:
-        fmu = args.fmu
-        axes, step = fmu_axes(fmu)
-        model = model_from_fmu(fmu)
-        Ts = model.Ts
-    bad = [a for a in axes if a not in ("x", "y", "z")]
-    if bad:
-        raise InputError(f"the model's axes {bad} are not x, y or z (the program's axes)",
-                         source=args.model or args.fmu, column="axes")
-    if not prog.blocks:
-        raise InputError("the program has no motion block (G0, G1, G2, G3 or G4)", source=args.program)
-    if not prog.axes_used:
-        raise InputError("the program moves no axis (every block ends where it starts): there is no "
-                         "error to predict", source=args.program)
-    if not any(a in axes for a in prog.axes_used):
-        raise InputError(f"the program moves only the axes {prog.axes_used}, none of which the twin "
-                         f"models (axes {axes}): there is no error to predict or feed to optimise",
-                         source=args.program)
-    # a contour error needs two axes: with one, the program's path in a plane would read 0.00 um
-    # and "every block stays inside" the tolerance
-    if len(axes) < 2 and len(prog.axes_used) >= 2:
-        raise InputError(f"the twin models one axis ({axes[0]}) of the axes the program moves "
-                         f"{prog.axes_used}: a contour error needs the path's plane; give a twin of "
-                         f"(at least) two axes", source=args.model or args.fmu, column="axes")
-    if args.optimize:       # optimize_feeds checks it too, after the table
-        check_optimisable(axes, source=args.model or args.fmu)
-    if args.commands:
-        tr = _ranged_trace(args.commands, args)
-        recorded_Ts = tr.Ts
-        if not fits_sample_time(recorded_Ts, Ts):   # the controller's cycle need not be the model's
-            tr = tr.resample(Ts)
-        ip = commands_from_trace(prog, tr, axes, Ts=Ts)
-        in_pos = None
-        if tr.Ts != recorded_Ts:                # said, not silent
-            print(f"note: the setpoints of {args.commands}, recorded at Ts = {recorded_Ts:g} s, are "
-                  f"resampled to the model's Ts = {Ts:g} s")
-        lim = None
-    else:
-        lim, origin = _limits(args, given_limits, prog.axes_used, model, axes)
-        window = IN_POSITION_MM if args.in_position is None else args.in_position
-        in_pos = InPosition(model, window) if window > 0 else None
-        ip = interpolate(prog, lim, Ts, progress=True, corner_angle_deg=args.corner_angle, in_position=in_pos)
-        ip.info["limit_sources"] = origin
+    ranged = {k: _ranged_trace(path, args) if path else None
+              for k, path in (("limits_from", args.limits_from), ("commands", args.commands))}
+    res = plan(args.model, args.program, fmu=args.fmu, tol_mm=args.tol, limits=given_limits,
+               start=start, corner_angle_deg=args.corner_angle, in_position_mm=args.in_position,
+               optimize=args.optimize, margin=args.margin, progress=True, **ranged)
+    prog, ip, pr, fpl, model = res.program, res.interpolation, res.prediction, res.feed_plan, res.model
+    fmu, axes, Ts, lim, origin = res.fmu, res.axes, res.Ts, res.limits, res.limit_sources
     # nothing is printed before here: every error the inputs or options can cause came first
+    for note in res.notes:
+        print(f"note: {note}")
     print(f"fdid plan: {args.program}: {len(prog.blocks)} blocks, axes moved {prog.axes_used}, "
           f"twin {'FMU ' + str(fmu) if fmu else 'model ' + args.model} (axes {axes}, Ts {Ts * 1e3:.4g} ms)")
     unmodelled = [a for a in prog.axes_used if a not in axes]
@@ -254,8 +168,6 @@ def run(args):
     if unread:              # lines after the end of the program: 'row N', as the errors name it
         print(f"  passed over: {', '.join(f'row {r}: {w}' for r, w in unread[:20])}"
               + (" ..." if len(unread) > 20 else ""))
-    twin = {"model": model} if fmu is None else {"fmu": fmu}
-    pr = predict(ip, tol_mm=args.tol, program=prog, **twin)
     s = pr.summary
     print(f"  cycle time {s['cycle_time_s']:.3f} s; contour error RMS {s['contour_rms_um']:.2f} µm, "
           f"MAX {s['contour_max_um']:.2f} µm; "
@@ -267,13 +179,8 @@ def run(args):
         feed = "rapid" if r["kind"] == "rapid" else "-" if r["kind"] == "dwell" else f"{r['feed_mm_min']:.0f}"
         print(f"| {r['block']} | {r['line']} | {r['kind']} | {feed} | {r['duration_s']:.3f} | "
               f"{r['contour_rms_um']:.2f} | {r['contour_max_um']:.2f} | {_flag(r, args.tol)} |")
-    fpl = None
-    if args.optimize:
-        from ..plan.optimize import optimize_feeds
+    if fpl is not None:
         from ..plan.ncprogram import write_program
-        given = {} if args.margin is None else {"margin": args.margin}    # else optimize_feeds' default
-        fpl = optimize_feeds(prog, lim, Ts, args.tol, progress=True, before=pr,
-                             corner_angle_deg=args.corner_angle, in_position=in_pos, **given, **twin)
         cut, whole = cutting_contour_max_um(fpl.after), fpl.after.summary["contour_max_um"]
         # the tolerance judges the cutting blocks: a rapid's larger figure read as a missed tolerance
         print(f"\nfeed optimisation (tol {args.tol * 1e3:.3g} µm): cycle time {fpl.before.interp.cycle_time:.3f} s "

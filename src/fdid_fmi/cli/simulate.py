@@ -7,12 +7,11 @@ import sys
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, naming
 from ..model import load_model
 from ..outputs import atomic_write, check_output
 from ..simulate import simulate
-from . import naming
-from .mapping import add_trace_arguments, trace_from_args
+from ..pipeline.traces import add_trace_arguments, trace_from_args
 
 
 def register(sub):

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import json
 
-from .argtypes import finite_float
-from .mapping import add_trace_arguments, trace_from_args
+from ..pipeline.argtypes import finite_float
+from ..pipeline.traces import add_trace_arguments, trace_from_args
 
 
 def register(sub):
@@ -28,13 +28,13 @@ def register(sub):
 
 
 def run(args):
-    from ..fmu.validate import validate_fmu
+    from ..api import validate
     from ..outputs import atomic_write, check_output
     if args.json:
         check_output(args.json, inputs=[p for p in (args.fmu, args.trace, args.model) if p], suffix=".json")
     trace = trace_from_args(args.trace, args)
     pieces = trace.select(trace.meta.get("ranges"))
-    results = [validate_fmu(args.fmu, t, model=args.model, tolerance_mm=args.tolerance) for t in pieces]
+    results = [validate(args.fmu, t, model=args.model, tolerance_mm=args.tolerance) for t in pieces]
     for k, r in enumerate(results):
         if len(results) > 1:
             print(f"## range {k + 1}: {pieces[k].t[0]:g} .. {pieces[k].t[-1]:g} s")

@@ -32,7 +32,7 @@ Identification options are those of ``fdid identify`` (``method``, ``search``, `
 ``-``; ``true`` for a flag; a list for a repeatable option) and ``range`` (data ranges of the
 identification trace). They are checked with the ``fdid identify`` parser and its checks of the
 option combination (``check_arguments``: ``v_tilde`` with ``v_tilde_range``, an option the method
-does not read, ...) when the manifest is loaded, and the data with its ``check_data_range`` before
+does not read, ...) when the manifest is loaded, and the data with its ``check_data_range`` (:mod:`fdid_fmi.pipeline.identify`) before
 the identification, so an entry is identified exactly as ``fdid identify`` would, or refused as it
 would refuse it; messages name the options as the manifest spells them (``options.v_tilde_range``,
 ``map``, ``units = { t_s = "ms" }``), not as command-line flags. ``axis`` may only name the entry's
@@ -159,10 +159,10 @@ class _RaisingParser(argparse.ArgumentParser):
 
 
 def _identify_parser():
-    from ..cli import identify as cli_identify
+    from ..pipeline.identify import add_identify_parser
     root = _RaisingParser(prog="fdid", add_help=False)
     sub = root.add_subparsers(dest="command")
-    cli_identify.register(sub)
+    add_identify_parser(sub)
     return root
 
 
@@ -329,8 +329,8 @@ def _build_entry(raw: dict, defaults: dict, base: Path, row: int, where: str) ->
         spec = EntrySpec(machine, axis, paths, mapping, units, _option_tokens(options, where, axis), diagnose,
                          det, fmi, row, names=tuple(traces))
         # the fdid identify parser checks option names and values (not the files)
-        from ..cli.identify import check_arguments
-        from ..cli.mapping import parse_mapping, parse_units
+        from ..pipeline.identify import check_arguments
+        from ..pipeline.traces import parse_mapping, parse_units
         try:
             args = identify_args(paths[0], spec)
         except InputError as exc:
@@ -544,11 +544,13 @@ def file_digest(path):
 # the parts of the package an entry's results depend on (reading, identification, model and
 # simulation, FMU generation and validation, diagnosis, the fleet itself); kernel.py and the C of
 # the compiled extension (kernel_ext: the pole search's regressor filter) run in identification
-# and simulation; cli/argtypes.py parses the option values; report.py writes entry.html
+# and simulation; pipeline/ holds the identification options, their value parsers and the trace
+# options; api.py is what an entry calls (it imports the planner, and the planner the virtual
+# machine's S-curves); report.py writes entry.html
 PIPELINE_SOURCES = ("io", "identify", "fmu", "fmu_templates", "diagnose", "fleet", "trace.py", "units.py",
                     "signals.py", "model.py", "simulate.py", "metrics.py", "errors.py", "outputs.py",
-                    "kernel.py", "kernel_ext", "report.py", "workers.py",
-                    "cli/identify.py", "cli/mapping.py", "cli/argtypes.py")
+                    "kernel.py", "kernel_ext", "report.py", "workers.py", "pipeline", "api.py", "plan",
+                    "virtual")
 
 
 def pipeline_files():

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FdidError, InputError
+from ..errors import FdidError, InputError, naming
 from .compare import ChangeReport, ModelSignature, Thresholds, compare_models, model_signature
 from .manifest import EntrySpec, file_digest, identify_args, manifest_words
 
@@ -202,14 +202,14 @@ class EntryResult:
 
 # ----------------------------------------------------------------------------- stages
 def validate_entry_fmu(fmu_path, trace, model, axis, name=None) -> ValidationFigures:
-    """THE one call into FMU validation (``fdid validate``'s engine); adapt here if its API changes.
+    """The one call into FMU validation (:func:`fdid_fmi.api.validate`, ``fdid validate``'s).
 
     Returns the FMU's tracking-error discrepancy to the measurement on ``axis`` [µm], its largest
     difference from the reference simulator [mm] and the problems found; ``name``: the trace's name
     in them (default its file path).
     """
-    from ..fmu.validate import validate_fmu
-    return validation_figures(validate_fmu(fmu_path, trace, model=model), trace, axis, name)
+    from ..api import validate
+    return validation_figures(validate(fmu_path, trace, model=model), trace, axis, name)
 
 
 def validation_figures(res, trace, axis, name=None) -> ValidationFigures:
@@ -268,17 +268,17 @@ def _read_traces(spec: EntrySpec, notes=None):
     does not follow its command (:func:`~fdid_fmi.io.follow.follow_notes`) are appended to
     ``notes`` as each trace is read (``<trace name>: <note>``, with the advice in the manifest's
     words), so that those of the traces read before a failing one are kept."""
-    from ..cli import naming
-    from ..cli.mapping import trace_from_args
+    from ..api import read_trace
     from ..io.follow import follow_notes
     traces = []
     for k, p in enumerate(spec.traces):
         args = identify_args(p, spec)
-        if k:       # 'range' selects data of the identification trace; the held-out ones are whole
-            args.range = []
-        # the reader names the resolved path; the manifest's words are wanted
+        # the reader names the resolved path; the manifest's words are wanted; the reader's notes
+        # are kept in EntryResult.notes
         with naming(spec.trace_name(k), replaces=p):
-            tr = trace_from_args(p, args, notes=False)      # kept in EntryResult.notes
+            # 'range' selects data of the identification trace; the held-out ones are whole
+            tr = read_trace(p, mapping=args.map, units=args.unit, ranges=None if k else args.range,
+                            layout=args.layout, axes=args.axes)
         if notes is not None:
             said = tr.meta.get("notes", []) + (follow_notes(tr, [spec.axis]) if k == 0 else [])
             notes += [manifest_words(f"{spec.trace_name(k)}: {n}") for n in said]
@@ -289,11 +289,11 @@ def _read_traces(spec: EntrySpec, notes=None):
 def _check_traces(spec: EntrySpec, traces):
     """The cheap checks of the data, before identification: the identification trace has the
     entry's axis with 'cmd' and 'act'; every trace's positions are of a usable scale (``fdid
-    identify``'s :func:`~fdid_fmi.cli.identify.check_data_range`: positions x1e10 were identified
+    identify``'s :func:`~fdid_fmi.pipeline.identify.check_data_range`: positions x1e10 were identified
     and then failed validation with a misleading message); each held-out trace has the axis's
     command and the identification trace's sample time (the model's, which the FMU runs at: a
     held-out trace at 2 ms against 1 ms failed only after identification and export)."""
-    from ..cli.identify import check_data_range
+    from ..pipeline.identify import check_data_range
     ax, train = spec.axis, traces[0]
     if ax not in train.axes or not (train.has(ax, "cmd") and train.has(ax, "act")):
         raise InputError(f"the trace has no axis '{ax}' with 'cmd' and 'act' channels "
@@ -317,14 +317,14 @@ def _check_traces(spec: EntrySpec, traces):
 def _identify(spec, trace):
     """``fdid identify``'s checks of the options (made at manifest load as well; again here for an
     :class:`EntrySpec` made in Python) and its identification of the entry's axis."""
-    from ..cli.identify import check_arguments, identify_from_args
+    from ..api import identify
+    from ..pipeline.identify import check_arguments, nondefault_options, structure_is_auto
     args = identify_args(spec.traces[0], spec)
     check_arguments(args)
-    if not args.axis:
-        args.axis = [spec.axis]
-    if args.jobs is None:       # the fleet runs its entries in parallel already
-        args.jobs = 1
-    return identify_from_args(trace, args, progress=False, notes=False)
+    options = nondefault_options(args)
+    if args.jobs is None and structure_is_auto(args):   # the fleet runs its entries in parallel already
+        options["jobs"] = 1
+    return identify(trace, args.method, axes=args.axis or [spec.axis], **options)
 
 
 def _save_json(path, data):
@@ -482,8 +482,7 @@ def from_inputs(exc, entry_dir) -> bool:
 
 def _build(spec, traces, out, res, tm):
     """Identify, export, validate and (optionally) diagnose; fills ``res``; returns the model."""
-    from ..cli import naming
-    from ..fmu import export_fmu
+    from ..api import diagnose, export_fmu
     from ..model import DriveModel
     train = traces[0]
     held = traces[1:] or traces[:1]
@@ -498,7 +497,7 @@ def _build(spec, traces, out, res, tm):
     res.outputs = {"model": "model.json"}
 
     t0 = time.perf_counter()
-    fmu = export_fmu(model, out / f"{spec.machine}_{spec.axis}.fmu".replace("-", "_"), fmi_version=spec.fmi)
+    fmu = export_fmu(model, out / f"{spec.machine}_{spec.axis}.fmu".replace("-", "_"), fmi=spec.fmi).path
     tm.export_s = time.perf_counter() - t0
     res.outputs["fmu"] = fmu.name
 
@@ -513,10 +512,9 @@ def _build(spec, traces, out, res, tm):
 
     final = model
     if spec.diagnose:
-        from ..diagnose import diagnose
         t0 = time.perf_counter()
         diag = diagnose(model, train, traces[1] if len(traces) > 1 else None,
-                        detectors=list(spec.detectors) if spec.detectors else None)
+                        detectors=list(spec.detectors) if spec.detectors else None, jobs=1)
         tm.diagnose_s = time.perf_counter() - t0
         _save_json(out / "diagnosis.json", diag.to_json())
         res.outputs["diagnosis"] = "diagnosis.json"

@@ -1,4 +1,6 @@
-"""Trace options shared by every ``fdid`` command: ``--map``, ``--unit``, ``--range``, ``--layout``.
+"""Reading a measured trace with a column map, units, data ranges and a layout: one way for
+:func:`fdid_fmi.api.read_trace`, every ``fdid`` command (``--map``, ``--unit``, ``--range``,
+``--layout``, ``--axes``) and the fleet's manifests.
 
 Every command that reads a measured trace calls ``add_trace_arguments(parser)`` once and
 ``trace_from_args(path, args)`` for each file, so all commands read traces the same way::
@@ -126,6 +128,15 @@ def trace_from_args(path, args, notes=True):
     layout = getattr(args, "layout", None) or "auto"
     axes = getattr(args, "axes", None)
     axes = tuple(a.strip() for a in axes.split(",") if a.strip()) if axes else None
+    say = (lambda note: print(f"note: {path}: {note}")) if notes else None
+    return read_with_options(path, mapping, units, ranges, layout, axes, say=say)
+
+
+def read_with_options(path, mapping=None, units=None, ranges=None, layout="auto", axes=None, say=None):
+    """Read ``path`` with parsed options (:func:`parse_mapping`, :func:`parse_units`,
+    ``parse_ranges``); ``axes`` a tuple of names; ``say``: called with each of the reader's notes
+    (units assumed or doubtful) as soon as the file is read. Returns the Trace as
+    :func:`trace_from_args` does."""
     for a in axes or ():
         check_name(a, "--axes")
     suffix = str(path).lower().rsplit(".", 1)[-1]
@@ -143,8 +154,8 @@ def trace_from_args(path, args, notes=True):
     else:
         kw = {"layout": layout, "axes": axes}
     trace = read_trace(path, mapping=mapping, units=units, **kw)
-    for note in trace.meta.get("notes", []) if notes else ():   # how it was read, where that may be wrong
-        print(f"note: {path}: {note}")
+    for note in trace.meta.get("notes", []) if say else ():   # how it was read, where that may be wrong
+        say(note)
     if axes and trace.meta.get("layout") not in ("emps", "siso-gui", "verify-gui"):
         # elsewhere the axes come from the column names or --map: --axes would be ignored
         raise InputError(f"--axes names the axes of the GUI layouts and of EMPS; this file's axes "
