@@ -427,11 +427,11 @@ def identify_namespace(method="pole-search", axes=None, options=None):
     InputError  an unknown option, a bad value or a combination ``fdid identify`` refuses
     """
     known = identify_options()
-    tokens = ["identify", "<trace>", "--method", str(method)]
+    tokens = ["identify", "<trace>", f"--method={method}"]
     if isinstance(axes, str):
         axes = [axes]
     for a in axes or ():
-        tokens += ["--axis", str(a)]
+        tokens.append(f"--axis={a}")
     for key, value in (options or {}).items():
         if key not in known:
             raise InputError(f"unknown identification option '{key}'; the options are "
