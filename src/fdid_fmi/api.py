@@ -1,8 +1,9 @@
 """The public Python API: trace -> model -> FMU, validation, diagnosis and planning.
 
-Every ``fdid`` command, the fleet and the demo run through these functions; what they add is
-argument parsing and printing. Positions are in mm, velocities in mm/s, times in s; errors
-of the fits are reported in µm.
+The commands ``fdid identify``, ``simulate``, ``export``, ``validate``, ``diagnose`` and
+``plan``, the fleet and the demo run through these functions; what the commands add is argument
+parsing and printing. Positions are in mm, velocities in mm/s, times in s; the fits' errors are
+reported in µm. (The examples read the traces bundled in the project's ``examples/`` folder.)
 
 >>> import fdid_fmi as fd
 >>> trace = fd.read_trace("examples/virtual_xy_moves.csv")
