@@ -66,3 +66,26 @@ def test_tutorial_runs_and_the_fmu_in_fmpy_equals_fdid_simulate(tmp_path, monkey
     d = np.genfromtxt(tmp_path / "examples" / "virtual_circle.csv", delimiter=",", names=True)
     assert np.array_equal(ns["e_x"], d["x_cmd_mm"] - res["x_x"])
     assert np.max(np.abs(ns["e_x"] - pred["x_e_pred_mm"])) <= 1e-9
+
+
+def test_cli_reference_is_generated_from_the_help_pages(tmp_path):
+    # docs/cli.md is written by docs/make_cli_md.py; a changed option must be regenerated there
+    script = tmp_path / "make_cli_md.py"
+    shutil.copy(ROOT / "docs" / "make_cli_md.py", script)
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "cli.md").read_text(encoding="utf-8") == \
+        (ROOT / "docs" / "cli.md").read_text(encoding="utf-8"), \
+        "docs/cli.md is out of date: run .venv/bin/python docs/make_cli_md.py"
+
+
+def test_cli_reference_examples_parse():
+    import shlex
+    from fdid_fmi.cli import build_parser
+    text = (ROOT / "docs" / "cli.md").read_text(encoding="utf-8")
+    block = re.search(r"^## Examples\n\n```bash\n(.*?)^```", text, flags=re.S | re.M).group(1)
+    parser = build_parser()
+    lines = [ln for ln in block.splitlines() if ln.strip()]
+    assert len(lines) >= 10
+    for line in lines:
+        parser.parse_args(shlex.split(line.split("  #")[0])[1:])
