@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
@@ -34,6 +35,7 @@ def test_readme_is_a_short_guide_with_the_two_setup_commands():
     assert re.search(r"^pip install \.", blocks, flags=re.M)
 
 
+@pytest.mark.slow   # about 25 CPU-s: identify (rigid), export, validate, a short diagnose, plan
 def test_tutorial_runs_and_the_fmu_in_fmpy_equals_fdid_simulate(tmp_path, monkeypatch):
     blocks = tutorial_blocks()
     kinds = [k for k, _ in blocks]
