@@ -95,13 +95,15 @@ def test_full_option_names_still_parse():
 
 
 def test_readme_commands_use_full_option_names():
-    # an abbreviation in the README would now be refused
+    # an abbreviation in the README or the docs would now be refused
     known = {o for p in _all_parsers(build_parser()) for a in p._actions for o in a.option_strings}
     used = set()
-    for line in (ROOT / "README.md").read_text(encoding="utf-8").splitlines():
-        if line.lstrip().startswith("fdid ") or "`fdid " in line:
-            for cmd in re.findall(r"fdid [^`]*", line):
-                used.update(re.findall(r"(?<![\w-])(--[a-z][a-z0-9-]*)", cmd))
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+    for page in pages:
+        for line in page.read_text(encoding="utf-8").splitlines():
+            if line.lstrip().startswith("fdid ") or "`fdid " in line:
+                for cmd in re.findall(r"fdid [^`]*", line):
+                    used.update(re.findall(r"(?<![\w-])(--[a-z][a-z0-9-]*)", cmd))
     assert len(used) > 20
     assert sorted(used - known) == []
 

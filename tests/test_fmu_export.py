@@ -42,11 +42,14 @@ def _commands(model, seed, v_start):
     return cmds, ext
 
 
-def _max_diff(model, out, ref):
+def _max_diff(model, cmds, out, ref):
+    """Largest differences of the FMU's outputs read before each step (row k: t_k) from the
+    reference: positions, the tracking error x_cmd(t_k) - <axis>_x(t_k), tool side; velocities."""
     d, dv = 0.0, 0.0
     for a in model.axes:
         r = ref.axes[a]
-        d = max(d, np.abs(out[f"{a}_x"] - r["position"]).max(), np.abs(out[f"{a}_e"] - r["error"]).max())
+        d = max(d, np.abs(out[f"{a}_x"] - r["position"]).max(),
+                np.abs((cmds[a] - out[f"{a}_x"]) - r["error"]).max())
         if "tool_position" in r:
             d = max(d, np.abs(out[f"{a}_x_tool"] - r["tool_position"]).max())
         dv = max(dv, np.abs(out[f"{a}_v"] - r["velocity"]).max())
@@ -79,7 +82,7 @@ def test_fmu_equals_reference_simulator(fmus, name, v_start):
         assert all(abs(v) > 30 for v in v0.values())
     ref = simulate(m, cmds, Ts=m.Ts, start_velocity=v0, externals=ext)
     out = run_fmu(fmu, cmds, m.Ts, start_velocity=v0, externals=ext)
-    d, dv = _max_diff(m, out, ref)
+    d, dv = _max_diff(m, cmds, out, ref)
     assert d <= 1e-9, f"max |FMU - reference| = {d} mm"
     assert dv <= 1e-9 / m.Ts
     # the applied friction inputs are exposed as locals and match too
@@ -104,7 +107,7 @@ def test_two_friction_inputs_use_mixed_branches(fmus):
     sat = np.isclose(np.abs(ref.u[:, fr]), lev)
     assert (sat[:, 0] != sat[:, 1]).any() and (~sat).all(axis=1).any()
     out = run_fmu(fmu, cmds, m.Ts)
-    assert _max_diff(m, out, ref)[0] <= 1e-9
+    assert _max_diff(m, cmds, out, ref)[0] <= 1e-9
 
 
 def test_parameters_match_reference_overrides(fmus):
@@ -113,7 +116,7 @@ def test_parameters_match_reference_overrides(fmus):
     params = {"x_friction_level": 0.6, "y_v_tilde": 2.5}
     ref = simulate(m, cmds, Ts=m.Ts, params={**params, "y_friction_on": False})
     out = run_fmu(fmu, cmds, m.Ts, parameters=params, booleans={"y_friction_on": False})
-    assert _max_diff(m, out, ref)[0] <= 1e-9
+    assert _max_diff(m, cmds, out, ref)[0] <= 1e-9
     base = run_fmu(fmu, cmds, m.Ts)
     assert np.abs(base["y_x"] - out["y_x"]).max() > 1e-4   # the parameters do something
 
@@ -131,8 +134,9 @@ def test_communication_step_of_three_samples(fmus):
     held = {"x": np.repeat(cmd[::3], 3)[:N]}
     ref = simulate(m, held, Ts=m.Ts, start_velocity={"x": 40.0})
     out3 = run_fmu(fmu, held, m.Ts, comm_step=3, start_velocity={"x": 40.0})
-    for key, var in (("position", "x_x"), ("tool_position", "x_x_tool"), ("error", "x_e")):
+    for key, var in (("position", "x_x"), ("tool_position", "x_x_tool")):
         assert np.abs(out3[var] - ref.axes["x"][key][::3]).max() <= 1e-9
+    assert np.abs((held["x"][::3] - out3["x_x"]) - ref.axes["x"]["error"][::3]).max() <= 1e-9
     out1 = run_fmu(fmu, held, m.Ts, start_velocity={"x": 40.0})
     assert np.array_equal(out1["x_x"][::3], out3["x_x"])
     assert len(out3["x_x"]) == N // 3
@@ -324,15 +328,18 @@ def test_model_description_contents(fmus):
     assert units["mm"].baseUnit.m == 1 and units["mm"].baseUnit.factor == 1e-3
     v = {x.name: x for x in md.modelVariables}
     assert v["x_x_cmd"].causality == "input" and v["x_x_cmd"].unit == "mm"
-    for name in ("x_x", "x_e", "x_x_tool"):
+    for name in ("x_x", "x_x_tool"):
         assert v[name].causality == "output" and v[name].unit == "mm" and v[name].description
     assert v["x_v"].unit == "mm/s"
     assert v["x_v0"].variability == "fixed" and float(v["x_v0"].start) == 0.0
     assert v["x_friction_on"].type == "Boolean" and v["x_v_tilde"].variability == "tunable"
     assert md.defaultExperiment.stepSize == repr(m.Ts) or float(md.defaultExperiment.stepSize) == m.Ts
     deps = {u.variable.name: [d.name for d in u.dependencies] for u in md.outputs}
-    # causal: the position answers the command one sample later; e = x_cmd - x the same sample
-    assert deps["x_x"] == [] and deps["x_x_tool"] == [] and deps["x_e"] == ["x_x_cmd"]
+    # causal: the position answers the command one sample later
+    assert deps["x_x"] == [] and deps["x_x_tool"] == []
+    # no tracking-error output: neither <axis>_e nor the model's error output (x_err)
+    assert sorted(deps) == ["x_v", "x_x", "x_x_tool"]
+    assert "x_e" not in v and "x_err" not in v
     cs = md.coSimulation
     assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate and cs.modelIdentifier == "flexible"
     with zipfile.ZipFile(fmu) as zf:
@@ -425,7 +432,7 @@ def test_fmi3_fmu_validates_and_equals_the_reference(tmp_path):
     v0 = {a: (c[1] - c[0]) / m.Ts for a, c in cmds.items()}
     ref = simulate(m, cmds, Ts=m.Ts, start_velocity=v0)
     out = run_fmu(fmu, cmds, m.Ts, start_velocity=v0)
-    assert _max_diff(m, out, ref)[0] <= 1e-9
+    assert _max_diff(m, cmds, out, ref)[0] <= 1e-9
     out3 = run_fmu(fmu, cmds, m.Ts, comm_step=3, outputs=["x_x"])
     assert len(out3["x_x"]) == N // 3
     # a step size that is not a multiple of Ts is refused
@@ -445,7 +452,7 @@ def test_fmi3_fmu_validates_and_equals_the_reference(tmp_path):
 def test_masters_see_the_model(fmus, name):
     """fmpy.simulate_fmu with an input table and step_size = Ts written as a decimal (what every
     master does: set inputs, doStep, read): positions, velocities and tool positions at each time
-    stamp equal the in-process prediction; e is x_cmd - x with the command the FMU holds."""
+    stamp equal the in-process prediction, and x_cmd(t) - <axis>_x(t) is the tracking error."""
     m, fmu = fmus[name]
     n = 600
     cmds, ext = _commands(m, seed=11, v_start=0.0)
@@ -462,7 +469,7 @@ def test_masters_see_the_model(fmus, name):
         assert np.abs(res[f"{a}_v"] - r["velocity"]).max() <= 1e-6
         if "tool_position" in r:
             assert np.abs(res[f"{a}_x_tool"] - r["tool_position"]).max() <= 1e-9
-        held = np.concatenate([cmds[a][:1], cmds[a][:-1]])
-        assert np.abs(res[f"{a}_e"] - (held - r["position"])).max() <= 1e-9
-        # and not the same-sample error: the held command lags by one step
-        assert np.abs(res[f"{a}_e"][1:] - r["error"][1:]).max() > 1e-6
+        # the tracking error at the master's time stamps: the command of that time stamp
+        # minus the position recorded at it (docs/fmu-interface.md)
+        assert np.abs((cmds[a] - res[f"{a}_x"]) - r["error"]).max() <= 1e-9
+    assert not any(name.endswith("_e") or name.endswith("_err") for name in outs)

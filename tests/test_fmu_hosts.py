@@ -26,7 +26,7 @@ def setup(tmp_path_factory):
     rng = np.random.default_rng(21)
     cmds = {a: fs.smooth_moves(N, rng, start=4.0 + i) for i, a in enumerate(m.axes)}
     return {"dir": d, "model": m, "fmu": fmu, "host": build_host(d), "cmds": cmds,
-            "outs": ["x_x", "x_e", "x_v", "y_x", "y_e", "y_v"]}
+            "outs": ["x_x", "x_v", "y_x", "y_v"]}
 
 
 def test_c_host_instances_are_independent_and_equal_fmpy(setup):
@@ -171,9 +171,9 @@ def test_ecos_cli_equals_fmpy(tmp_path):
     cmd = np.zeros(n)
     for t, v in steps:
         cmd[int(round(t / m.Ts)):] = v
-    ref = run_fmu(fmu, {"x": cmd}, m.Ts, outputs=["x_x", "x_e", "x_v"], read="after")
+    ref = run_fmu(fmu, {"x": cmd}, m.Ts, outputs=["x_x", "x_v"], read="after")
     rows = data[1:n + 1]                  # row k+1 = after step k
     assert np.allclose(rows[:, 1], (np.arange(n) + 1) * m.Ts)
-    for name in ("x_x", "x_e", "x_v"):
+    for name in ("x_x", "x_v"):
         assert np.abs(rows[:, col[name]] - ref[name]).max() <= 1e-6, name
     assert np.abs(ref["x_x"]).max() > 0.5       # the steps moved the axis

@@ -82,7 +82,7 @@ def test_coupled_model_fmu_in_fmpy_and_c_host(coupled):
         pytest.skip("gcc is not installed")
     n = 1500
     cmds = {a: val.cmd(a)[:n] for a in m.axes}
-    outs = [f"{a}_{k}" for a in m.axes for k in ("x", "e", "v")]
+    outs = [f"{a}_{k}" for a in m.axes for k in ("x", "v")]
     proc, Y = run_host(build_host(d), fmu, {f"{a}_x_cmd": c for a, c in cmds.items()}, outs, m.Ts)
     assert proc.returncode == 0, proc.stderr
     ref = run_fmu(fmu, cmds, m.Ts, outputs=outs)

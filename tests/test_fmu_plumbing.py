@@ -125,7 +125,7 @@ class Slave:
         self.free()
 
 
-def _run(s, cmd, k0=0, outs=("x_x", "x_e", "x_v", "x_dnf")):
+def _run(s, cmd, k0=0, outs=("x_x", "x_v", "x_dnf")):
     y = []
     for k in range(k0, len(cmd)):
         s.set([s.vr["x_x_cmd"]], [cmd[k]])
@@ -289,7 +289,7 @@ def test_value_references_types_and_null_arrays(fmus, v):
                 call()
             assert s.errors(), "an error without a logged reason"
             s.set_state(state)
-        y = s.get([s.vr["x_x"], s.vr["x_x"], s.vr["x_e"], s.vr["x_x"]])          # repeated: fine
+        y = s.get([s.vr["x_x"], s.vr["x_x"], s.vr["x_v"], s.vr["x_x"]])          # repeated: fine
         assert y[0] == y[1] == y[3]
         vp = ctypes.c_void_p
         for name in (("fmi3GetFloat64", "fmi3SetFloat64", "fmi3GetBoolean") if v == 3

@@ -9,6 +9,11 @@ plus a JSON of every figure's data, so a reader can replot or check any number.
     rep.write("report.html")              # one file, no external resources
     rep.write_json("report.json")         # every table and figure's data
 
+A table's columns may be keys (``contour_max_um``): the HTML shows each with its label and
+unit from :mod:`fdid_fmi.labels` ("contour error MAX [µm]"), the JSON keeps the keys in
+``columns`` and the labels in ``labels``. Every table sits in a container that scrolls
+sideways when the table is wider than the page.
+
 The HTML embeds the same JSON in a ``<script type="application/json" id="report-data">``
 element. Arrays are written as lists; long series can be decimated by the caller (the figure's
 data should be what is plotted). Figures are closed after they are rendered.
@@ -24,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .labels import LABELS, label, metric_label
 from .model import jsonable
 from .outputs import atomic_write
 
@@ -33,7 +39,8 @@ margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
 h1{font-size:1.6em;border-bottom:2px solid #444;padding-bottom:.2em}
 h2{font-size:1.25em;margin-top:1.8em;border-bottom:1px solid #bbb}
 h3{font-size:1.05em}
-table{border-collapse:collapse;margin:.6em 0 1.2em 0;font-size:.92em}
+.table-wrap{max-width:100%;overflow-x:auto;margin:.6em 0 1.2em 0}
+table{border-collapse:collapse;font-size:.92em}
 th,td{border:1px solid #ccc;padding:.25em .6em;text-align:right}
 th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}
 figure{margin:1em 0}figcaption{font-size:.9em;color:#555}
@@ -44,6 +51,7 @@ pre{background:#f6f6f6;padding:.6em;overflow-x:auto;font-size:.85em}
 
 
 _jsonable = jsonable  # one definition, in model.py
+_FMT = "{:.3g}"       # numbers in tables: 3 significant digits (whole numbers from 1000 to 1e6)
 
 
 class Report:
@@ -77,8 +85,10 @@ class Report:
     def add_code(self, text):
         self._blocks.append(("code", str(text)))
 
-    def add_table(self, name, rows, columns=None, caption="", fmt="{:.3g}"):
-        """A table. ``rows``: list of dicts (``columns`` picks and orders the keys) or of lists."""
+    def add_table(self, name, rows, columns=None, caption="", fmt=None):
+        """A table. ``rows``: list of dicts (``columns`` picks and orders the keys) or of lists.
+        Columns are shown with their labels (:func:`fdid_fmi.labels.label`)."""
+        fmt = fmt or _FMT
         name = _unique(name, self.tables)      # a second 'errors' replaced the first in the JSON
         if rows and isinstance(rows[0], dict):
             columns = columns or list(rows[0])
@@ -86,7 +96,8 @@ class Report:
         else:
             body = [list(r) for r in rows]
             columns = list(columns or [])
-        self.tables[name] = {"columns": columns, "rows": body, "caption": caption}
+        self.tables[name] = {"columns": columns, "labels": [label(c) for c in columns], "rows": body,
+                             "caption": caption}
         self._blocks.append(("table", (name, columns, body, caption, fmt)))
 
     def add_figure(self, name, fig, data=None, caption="", dpi=90):
@@ -129,14 +140,14 @@ class Report:
                 out.append(f"<pre>{html.escape(p)}</pre>")
             elif kind == "table":
                 name, cols, body, caption, fmt = p
-                out.append(f"<table id='table-{html.escape(name)}'>")
+                out.append(f"<div class='table-wrap'><table id='table-{html.escape(name)}'>")
                 if caption:
                     out.append(f"<caption>{html.escape(caption)}</caption>")
                 if cols:
-                    out.append("<tr>" + "".join(f"<th>{html.escape(str(c))}</th>" for c in cols) + "</tr>")
+                    out.append("<tr>" + "".join(f"<th>{html.escape(label(c))}</th>" for c in cols) + "</tr>")
                 for row in body:
                     out.append("<tr>" + "".join(f"<td>{html.escape(_cell(v, fmt))}</td>" for v in row) + "</tr>")
-                out.append("</table>")
+                out.append("</table></div>")
             elif kind == "figure":
                 name, png, caption = p
                 out.append(f"<figure id='figure-{html.escape(name)}'><img alt='{html.escape(name)}' "
@@ -172,8 +183,14 @@ def _unique(name, taken):
 
 
 def _cell(v, fmt):
+    if isinstance(v, (bool, np.bool_)):
+        return "yes" if v else "no"
     if isinstance(v, (float, np.floating)):
-        return fmt.format(float(v)) if np.isfinite(v) else "–"
+        if not np.isfinite(v):
+            return "–"
+        if fmt == _FMT and 1e3 <= abs(v) < 1e6:      # 6000 mm/min, not 6e+03
+            return f"{float(v):.0f}"
+        return fmt.format(float(v))
     return str(v)
 
 
@@ -238,10 +255,13 @@ def add_model_section(rep, model, fmu=None, validation=None, heading="The identi
     if fr:
         rep.add_table("model_friction", fr, caption="friction: normalised Coulomb input d = L sat(v / v_tilde) "
                       "(Eqn 4.12-4.13); its force scale is in the numerator (d0) of each output")
-    fit = _flatten_metrics(model.metrics)
+    fit = metric_rows(model)
     if fit:
-        rep.add_table("model_fit", [{"figure": k, "value": v} for k, v in fit.items()],
-                      caption="training fit as the identification recorded it (RMS figures in mm, times in s)")
+        rep.add_table("model_fit", fit, columns=["part", "quantity", "value"],
+                      caption="training fit as the identification recorded it: the residual of the "
+                              "least-squares fit on the training trace, with the friction term built from the "
+                              "measured velocity (the free-run discrepancy of the validation is what the twin "
+                              "is judged by)")
     if model.effects:
         rep.add_table("model_effects", [{"kind": e.get("kind", "?"), "axis": e.get("axis", ""),
                                          "parameters": ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
@@ -340,17 +360,37 @@ def add_model_section(rep, model, fmu=None, validation=None, heading="The identi
                      + ". The FMU is the model compiled to C; it must reproduce the reference simulator.")
 
 
-def _flatten_metrics(m, prefix=""):
-    out = {}
-    if isinstance(m, dict):
-        for k, v in m.items():
-            out.update(_flatten_metrics(v, f"{prefix}{k} / " if prefix or k else ""))
-    elif isinstance(m, list):
-        for i, v in enumerate(m):
-            out.update(_flatten_metrics(v, f"{prefix}{i} / "))
-    elif isinstance(m, (int, float, np.floating)) and not isinstance(m, bool):
-        out[prefix.rstrip(" /")] = float(m)
-    return dict(list(out.items())[:40])
+def metric_rows(model, limit=40):
+    """The model's training record (``model.metrics``) as rows {part, quantity, value}, labelled
+    from :data:`fdid_fmi.labels.LABELS` with each value in the label's unit. ``part`` names the
+    axes of each block of a combined per-axis model (from the outputs its figures are of)."""
+    m = model.metrics if isinstance(model.metrics, dict) else {}
+    blocks = m["blocks"] if isinstance(m.get("blocks"), list) else [m]
+    axis_of = {p.name: p.axis for p in getattr(model, "outputs", [])}
+    rows = []
+    for i, blk in enumerate(blocks, 1):
+        if not isinstance(blk, dict):
+            continue
+        outs = blk.get("fit_rms") if isinstance(blk.get("fit_rms"), dict) else {}
+        axes = sorted({axis_of[o] for o in outs if axis_of.get(o)})
+        part = (("axis " if len(axes) == 1 else "axes ") + ", ".join(axes) if axes
+                else f"block {i}" if len(blocks) > 1 else "model")
+        for key, value in blk.items():
+            if isinstance(value, dict):
+                rows += [{"part": part, "quantity": metric_label(key, o), "value": _scaled(key, v)}
+                         for o, v in value.items() if _number(v)]
+            elif _number(value):
+                rows.append({"part": part, "quantity": metric_label(key), "value": _scaled(key, value)})
+    return rows[:limit]
+
+
+def _number(v):
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+
+
+def _scaled(key, v):
+    t = LABELS.get(key)
+    return v if isinstance(v, (int, np.integer)) or t is None or t.scale == 1.0 else float(v) * t.scale
 
 
 def _fmu_variables(rep, fmu):
@@ -370,4 +410,6 @@ def _fmu_variables(rep, fmu):
                  f"{md.coSimulation.modelIdentifier if md.coSimulation else '?'}"
                  + (f", step size {ex.stepSize} s" if ex is not None and ex.stepSize else "") + ".")
     rep.add_table("fmu_variables", rows, caption="FMU variables (inputs: commanded positions; outputs: "
-                  "predicted position, tracking error, ...; parameters: friction level, v_tilde, ...)")
+                  "predicted position and velocity, ...; parameters: friction level, v_tilde, ...). The "
+                  "tracking error at a time t is the command of t minus <axis>_x read for t "
+                  "(docs/fmu-interface.md)")

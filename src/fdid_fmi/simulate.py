@@ -10,8 +10,8 @@ Semantics (DESIGN.md "Simulation semantics")
 Causality. Position, velocity and tool-side outputs do not depend on the command of the same
 sample (``model.delayed_input``): x_k is the prediction from the commands up to k-1, so an
 output read after a co-simulation step ``doStep(t_k, Ts)`` is the model's value at t_k+1.
-The error output is e_k = x_r,k - x_k with the command of the same sample (the FMU: the command
-input currently set).
+The error output is e_k = x_r,k - x_k with the command of the same sample (the FMU exports no
+error output: a master forms x_cmd(t) - ``<axis>_x``(t) itself, docs/fmu-interface.md).
 
 Offsets. Command inputs enter as deviations from their value at the first sample, u_ref; the
 d.c. response G1 u_ref (G1 = C (I-A)^-1 B + D) is added to the outputs. This keeps the states

@@ -129,6 +129,7 @@ def _check_options(args):
 def run(args):
     import numpy as np
     from ..api import plan
+    from ..labels import label
     from ..plan.predict import cutting_contour_max_um
     from ..plan.reporting import plan_report, words_summary
 
@@ -173,7 +174,8 @@ def run(args):
           f"MAX {s['contour_max_um']:.2f} µm; "
           + "; ".join([f"{a}: tracking MAX {v['error_max_um']:.1f} µm" for a, v in s["axes"].items()]
                       + [f"{a}: not predicted" for a in s.get("not_predicted", [])]))
-    print("\n| block | line | kind | feed [mm/min] | time [s] | contour RMS [µm] | contour MAX [µm] | flag |")
+    print("\n| " + " | ".join(map(label, ("block", "line", "kind", "feed_mm_min", "duration_s", "contour_rms_um",
+                                       "contour_max_um", "flag"))) + " |")
     print("|---:|---:|---|---:|---:|---:|---:|---|")
     for r in pr.blocks:
         feed = "rapid" if r["kind"] == "rapid" else "-" if r["kind"] == "dwell" else f"{r['feed_mm_min']:.0f}"
@@ -190,14 +192,15 @@ def run(args):
               + (f"uniform override {100 * fpl.uniform_override:.1f} %: {fpl.uniform_cycle_time_s:.3f} s"
                  if fpl.uniform_override > 0 else "no uniform override meets the tolerance")
               + ("" if fpl.reachable else "; NOT every block reachable by the feed alone"))
-        print("| block | line | feed [mm/min] | new feed [mm/min] | contour MAX before / after [µm] | time before / after [s] |")
-        print("|---:|---:|---:|---:|---:|---:|")
+        print("| " + " | ".join(map(label, ("block", "line", "feed_mm_min", "new_feed_mm_min", "contour_max_before_um",
+                                           "contour_max_after_um", "time_before_s", "time_after_s"))) + " |")
+        print("|---:|---:|---:|---:|---:|---:|---:|---:|")
         for r in fpl.rows:
             if r["kind"] == "rapid":
                 continue
             print(f"| {r['block']} | {r['line']} | {r['feed_mm_min']:.0f} | {r['new_feed_mm_min']:.0f} | "
-                  f"{r['contour_max_before_um']:.2f} / {r['contour_max_after_um']:.2f} | "
-                  f"{r['time_before_s']:.3f} / {r['time_after_s']:.3f} |")
+                  f"{r['contour_max_before_um']:.2f} | {r['contour_max_after_um']:.2f} | "
+                  f"{r['time_before_s']:.3f} | {r['time_after_s']:.3f} |")
         if args.output:
             text = write_program(prog, fpl.new_feeds_mm_s(prog),
                                  header=f"feeds optimised by fdid plan for a contour tolerance of {args.tol:g} mm")

@@ -66,23 +66,42 @@ def fmt_params(e):
     return ", ".join(parts)
 
 
-def error_rows(before, after, fmu=None):
+def error_rows(before, after, fmu=None, traces=None):
+    """Rows of the before/after table: per trace and channel the free-run discrepancy (measured -
+    predicted) RMS / MAX before and after, beside the measured tracking error of that channel
+    (commanded minus measured position, motor or tool side) when ``traces`` ({trace label:
+    Trace}) are given, and the FMU's discrepancy when ``fmu`` (:func:`fmu_check`) is. Keys as
+    :data:`fdid_fmi.labels.LABELS` labels them."""
     rows = []
     for tname in before:
         for ch in before[tname]:
-            r = {"trace": tname, "channel": ch,
-                 "RMS before [µm]": before[tname][ch]["rms_um"], "RMS after [µm]": after[tname][ch]["rms_um"],
-                 "MAX before [µm]": before[tname][ch]["max_um"], "MAX after [µm]": after[tname][ch]["max_um"]}
+            r = {"trace": tname, "channel": ch}
+            measured = _measured_error(traces.get(tname), ch) if traces else None
+            if measured is not None:
+                r["measured_rms_um"], r["measured_max_um"] = measured["rms_um"], measured["max_um"]
+            r.update({"rms_before_um": before[tname][ch]["rms_um"], "rms_after_um": after[tname][ch]["rms_um"],
+                      "max_before_um": before[tname][ch]["max_um"], "max_after_um": after[tname][ch]["max_um"]})
             b = before[tname][ch]["rms_um"]
-            r["RMS change"] = f"{100 * (after[tname][ch]['rms_um'] / b - 1):+.1f} %" if b > 0 else "–"
+            r["rms_change"] = f"{100 * (after[tname][ch]['rms_um'] / b - 1):+.1f} %" if b > 0 else "–"
             if fmu and "error" not in fmu and "." not in ch:
                 fb = fmu["before"].get(tname, {}).get(ch)
                 fa = fmu["after"].get(tname, {}).get(ch)
                 if fb and fa:
-                    r["FMU RMS before [µm]"], r["FMU RMS after [µm]"] = fb["rms_um"], fa["rms_um"]
-                    r["FMU MAX before [µm]"], r["FMU MAX after [µm]"] = fb["max_um"], fa["max_um"]
+                    r["fmu_rms_before_um"], r["fmu_rms_after_um"] = fb["rms_um"], fa["rms_um"]
+                    r["fmu_max_before_um"], r["fmu_max_after_um"] = fb["max_um"], fa["max_um"]
             rows.append(r)
     return rows
+
+
+def _measured_error(trace, channel):
+    """{"rms_um", "max_um"} of the measured tracking error of a residual channel ("x": commanded
+    minus measured position, "x.tool": minus the tool-side position), or None."""
+    from ..metrics import rms_max_um
+    axis, _, side = channel.partition(".")
+    role = "tool" if side == "tool" else "act"
+    if trace is None or not (trace.has(axis, "cmd") and trace.has(axis, role)):
+        return None
+    return rms_max_um(np.asarray(trace.cmd(axis), float) - np.asarray(trace.get(axis, role), float))
 
 
 def _residual_figure(step_label, rb, ra):
@@ -186,8 +205,10 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
         f"model and the same refit without the effect; without a held-out trace, in the first round, "
         f"against that refit alone) and no channel rises by more than "
         f"{100 * s['max_loss']:.0f} %. {diag.split}")
-    rep.add_table("errors", error_rows(diag.before, diag.after, fmu),
-                  caption="free-run error before (given model) and after (every kept effect)")
+    traces = {"train": diag.train, "val": diag.val}
+    rep.add_table("errors", error_rows(diag.before, diag.after, fmu, traces),
+                  caption="the measured tracking error, and beside it the twin's discrepancy (measured - "
+                          "free-run prediction) before (given model) and after (every kept effect)")
     if fmu:
         if "error" in fmu:
             rep.add_text(f"FMU check: {fmu['error']}")
@@ -199,8 +220,8 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
         e = st.effect
         rep.add_heading(f"Step {i}: {e['kind']} on axis {e['axis']}")
         rep.add_text(f"Fitted parameters: {fmt_params(e)}")
-        rep.add_table(f"step{i}_errors", error_rows(st.before, st.after),
-                      caption=f"error before / after step {i}")
+        rep.add_table(f"step{i}_errors", error_rows(st.before, st.after, traces=traces),
+                      caption=f"the twin's discrepancy before / after step {i}, beside the measured tracking error")
         fig, data = _residual_figure(f"step {i}: {e['kind']}", st.residual_before, st.residual_after)
         rep.add_figure(f"step{i}_residual", fig, data, caption="residual before (red) and after (blue)")
         plot = _round_plot(owner, k, e["kind"], e["axis"])
@@ -254,7 +275,7 @@ def per_axis_rows(diag):
         val_b, val_a = d.before.get("val", {}), d.after.get("val", {})
         rows.append({"axis": a, "tried": ", ".join(d.tried) or "nothing",
                      "kept": ", ".join(kept) or "none",
-                     "held-out RMS [µm]": "; ".join(f"{ch}: {val_b[ch]['rms_um']:.4g} -> "
+                     "held-out discrepancy RMS before -> after [µm]": "; ".join(f"{ch}: {val_b[ch]['rms_um']:.4g} -> "
                                                     f"{val_a[ch]['rms_um']:.4g}" for ch in val_b)})
     return rows
 

@@ -12,7 +12,6 @@ name                         causality   unit       meaning
 ``<axis>_x_cmd``             input       mm         commanded position x_r
 ``<external input name>``    input       port unit  identified extra input (e.g. a force)
 ``<axis>_x``                 output      mm         predicted position x
-``<axis>_e``                 output      mm         tracking error e = x_r - x
 ``<axis>_v``                 output      mm/s       velocity (model output or backward diff.)
 ``<axis>_x_tool``            output      mm         tool-side position (flexible-mode models)
 ``<other output name>``      output      port unit  any other model output
@@ -22,6 +21,12 @@ name                         causality   unit       meaning
 ``<axis>_friction_on``       parameter   Boolean    friction on/off (tunable)
 ``<axis>_v0``                parameter   mm/s       start velocity (fixed; 0 = at rest)
 ===========================  ==========  =========  ==========================================
+
+No tracking-error output: read after ``doStep(t_k, h)`` the outputs are the prediction for
+t_k + h, while the FMU still holds the command of t_k, so x_cmd - x there would be neither
+instant's error. A master computes the tracking error at its time t as x_cmd(t) - ``<axis>_x``(t).
+A model output of kind ``error`` is not exported for the same reason (:attr:`FmuLayout.axis_err`
+keeps its index for the reference simulator).
 """
 from __future__ import annotations
 
@@ -51,7 +56,7 @@ FMI_UNITS = {
 VELOCITY_UNIT = {"mm": "mm_s", "deg": "deg_s"}
 
 # roles (must match the enum in fmu_templates/fdid_model.h)
-ROLES = ("cmd", "ext", "pos", "err", "vel", "tool", "y", "u", "level", "v_tilde", "on", "v0")
+ROLES = ("cmd", "ext", "pos", "vel", "tool", "y", "u", "level", "v_tilde", "on", "v0")
 FEATURES = FEATURE_FUNCTIONS      # the enum FDID_F_* in fmu_templates/fdid_model.h, in this order
 KINDS = ("command", "external", "friction", "feature")
 # value reference of the first variable; the others follow in the order of FmuLayout.variables
@@ -90,7 +95,7 @@ class FmuLayout:
     fric_vel_diff: list       # 1 if that source is a position (backward difference)
     axis_cmd: list
     axis_pos: list
-    axis_err: list            # -1 if none
+    axis_err: list            # model error output per axis, -1 if none (not an FMU variable)
     axis_vel: list
     axis_tool: list
     axis_level0: list
@@ -203,10 +208,7 @@ def build_layout(model):
                              description=f"predicted position of axis {a}",
                              depends=deps["out"][pos[k]]))
         covered.add(pos[k])
-        e_dep = deps["out"][err[k]] if err[k] >= 0 else sorted(set(deps["out"][pos[k]]) | {("cmd", k)})
-        V.append(FmuVariable(unique(f"{a}_e", "y_"), "err", k, "output", "continuous", unit=u,
-                             description=f"tracking error x_cmd - x of axis {a}", depends=e_dep))
-        if err[k] >= 0:
+        if err[k] >= 0:     # not exported: x_cmd - x of the held command (see the module notes)
             covered.add(err[k])
         v_dep = deps["out"][vel[k]] if vel[k] >= 0 else deps["out"][pos[k]]
         V.append(FmuVariable(unique(f"{a}_v", "y_"), "vel", k, "output", "continuous", unit=vu,

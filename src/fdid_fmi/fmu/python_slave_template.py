@@ -74,10 +74,6 @@ class FdidSlaveBase(Fmi2Slave):
         y = self._st.outputs()
         if role == "pos":
             return float(y[lay.axis_pos[a]])
-        if role == "err":
-            if lay.axis_err[a] >= 0:
-                return float(y[lay.axis_err[a]])
-            return float(self._st.views["cmd"][a] - y[lay.axis_pos[a]])
         if role == "vel":
             return float(self._st.views["vel"][a])
         if role == "tool":

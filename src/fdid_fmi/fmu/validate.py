@@ -8,8 +8,8 @@
    (``step_size`` = the model's Ts, outputs recorded after every ``doStep``: what fmpy, ecos,
    libcosim and other masters do), rows aligned by time, against
    :func:`fdid_fmi.simulate.simulate` on the same trace: largest absolute difference of every
-   position / velocity / tool output at the same time stamps (target <= 1e-9 mm), and of the
-   error output against its definition (below). A non-finite output anywhere is a problem;
+   position / velocity / tool output at the same time stamps (target <= 1e-9 mm). A non-finite
+   output anywhere is a problem;
 3. the FMU's prediction against the measurement: RMS and maximum of the tracking-error
    discrepancy (x_cmd(t_k) - x_FMU(t_k) - measured e(t_k)) per axis in µm, and for two or more
    axes the contour-error discrepancy of the first two axes;
@@ -22,10 +22,9 @@
    every sample" (2.) and "held (or interpolated) inputs at the master's step".
 
 Timing. The models are causal: an output read after ``doStep(t_k, Ts)`` is the prediction for
-t_k+1, so row k of the master's table is the model at t_k. The error output ``<axis>_e`` is
-x_cmd - x with the command the FMU holds: after ``doStep(t_k, Ts)`` that is the command of t_k,
-so a master's row k+1 holds x_cmd(t_k) - x(t_k+1); a master that sets x_cmd(t_k+1) and reads
-before stepping gets the tracking error of t_k+1 itself.
+t_k+1, so row k of the master's table is the model at t_k, and the tracking error at t_k is
+x_cmd(t_k) - ``<axis>_x`` of row k (the FMU has no error output: it would pair the command it
+holds, of t_k, with the position of t_k+1).
 """
 from __future__ import annotations
 
@@ -55,7 +54,7 @@ class ValidationResult:
     fmu : str                       FMU file
     problems : list[str]            fmpy validation problems and failed checks (empty = none)
     max_abs_diff_reference_mm : float
-        max |FMU - reference simulator| over all position/error/tool outputs (mm)
+        max |FMU - reference simulator| over all position and tool-side outputs (mm)
     max_abs_diff_reference_velocity_mm_s : float
     axes : dict axis -> {"rms_um", "max_um"}   tracking-error discrepancy vs the measurement
     contour : dict or None          {"axes": [a, b], "rms_um", "max_um"} contour-error discrepancy
@@ -504,7 +503,7 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     lay = build_layout(model)
     var = {(v.role, v.index): v.name for v in lay.variables}      # names by role (FmuLayout)
     ak = {a: k for k, a in enumerate(lay.axes)}
-    names = {(role, a): var[(role, ak[a])] for a in axes for role in ("cmd", "pos", "err", "vel", "tool")
+    names = {(role, a): var[(role, ak[a])] for a in axes for role in ("cmd", "pos", "vel", "tool")
              if (role, ak[a]) in var}
     have = {v.name for v in md.modelVariables}
     used = list(names.values()) + [var[("v0", ak[a])] for a in axes if ("v0", ak[a]) in var] + [
@@ -552,9 +551,7 @@ def validate_fmu(fmu_path, trace, model=None, tolerance_mm=1e-9, start="auto"):
     dpos, dvel = 0.0, 0.0
     for a in axes:
         r = ref.axes[a]
-        held = ext_cmds[a][R - 1:-1] if R else np.concatenate([cmds[a][:1], cmds[a][:-1]])
-        dpos = max(dpos, _maxdiff(out[("pos", a)], r["position"]),
-                   _maxdiff(out[("err", a)], held - r["position"]))    # e = held x_cmd - x
+        dpos = max(dpos, _maxdiff(out[("pos", a)], r["position"]))
         if ("tool", a) in out:
             dpos = max(dpos, _maxdiff(out[("tool", a)], r["tool_position"]))
         dvel = max(dvel, _maxdiff(out[("vel", a)], r["velocity"]))

@@ -438,9 +438,6 @@ double fdid_var_value(FdidState *S, const FdidVar *v) {
     fdid_outputs(S);
     switch (v->role) {
     case FDID_V_POS: return S->y[M->axis_pos_output[a]];
-    case FDID_V_ERR:
-        if (M->axis_err_output[a] >= 0) return S->y[M->axis_err_output[a]];
-        return S->cmd[a] - S->y[M->axis_pos_output[a]];
     case FDID_V_VEL: return S->vel[a];
     case FDID_V_TOOL: return S->y[M->axis_tool_output[a]];
     case FDID_V_Y: return S->y[a];

@@ -46,7 +46,6 @@ enum {
     FDID_V_CMD = 0,     /* input  <axis>_x_cmd, index = axis                                   */
     FDID_V_EXT,         /* input  external model input, index = model input                    */
     FDID_V_POS,         /* output <axis>_x, index = axis                                       */
-    FDID_V_ERR,         /* output <axis>_e, index = axis                                       */
     FDID_V_VEL,         /* output <axis>_v, index = axis                                       */
     FDID_V_TOOL,        /* output <axis>_x_tool, index = axis                                  */
     FDID_V_Y,           /* output any other model output, index = model output                 */
@@ -98,7 +97,8 @@ typedef struct {
     const int *fric_vel_diff;         /* 1: backward difference of a position output */
     const int *axis_cmd_input;        /* per axis: command input index */
     const int *axis_pos_output;       /* per axis: position output index */
-    const int *axis_err_output;       /* per axis: error output index or -1 */
+    const int *axis_err_output;       /* per axis: error output index or -1 (in-process runs only:
+                                         no FMU variable) */
     const int *axis_vel_output;       /* per axis: velocity output index or -1 */
     const int *axis_tool_output;      /* per axis: tool_position output index or -1 */
     const double *axis_level0;        /* per axis: default friction level (0 if no friction) */

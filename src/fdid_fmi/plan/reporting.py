@@ -183,12 +183,15 @@ def plan_report(program, pr, model=None, tol_mm=None, feed_plan=None, fmu=None, 
     if lims:
         rep.add_table("limits", lims, caption="axis limits the program was interpolated within "
                       "(velocity, acceleration, jerk) and where each came from")
-    rows = [{"axis": a, "tracking RMS [µm]": v["error_rms_um"], "tracking MAX [µm]": v["error_max_um"]}
-            for a, v in s["axes"].items()]
-    rows += [{"axis": a, "tracking RMS [µm]": "not predicted", "tracking MAX [µm]": "not predicted"}
+    rows = [{"quantity": f"{a} tracking error", "predicted_rms_um": v["error_rms_um"],
+             "predicted_max_um": v["error_max_um"]} for a, v in s["axes"].items()]
+    rows += [{"quantity": f"{a} tracking error", "predicted_rms_um": "not predicted", "predicted_max_um": "not predicted"}
              for a in s.get("not_predicted", [])]
-    rows.append({"axis": "contour", "tracking RMS [µm]": s["contour_rms_um"], "tracking MAX [µm]": s["contour_max_um"]})
-    rep.add_table("program", rows, caption="whole program: predicted tracking error per axis and contour error")
+    rows.append({"quantity": "contour error", "predicted_rms_um": s["contour_rms_um"],
+                 "predicted_max_um": s["contour_max_um"]})
+    rep.add_table("program", rows, columns=["quantity", "predicted_rms_um", "predicted_max_um"],
+                  caption="whole program: the twin's predicted tracking error per axis (commanded minus "
+                          "predicted position) and contour error (normal to the path)")
     if len(pr.axes) >= 2:
         path_figure(rep, "path", pr)
     error_figures(rep, "errors", pr, tol_mm)
@@ -196,10 +199,10 @@ def plan_report(program, pr, model=None, tol_mm=None, feed_plan=None, fmu=None, 
                                                                   "contour_signed_peak_um",
                                                                   "contour_max_with_dwell_um", "flag"]
     rep.add_table("blocks", [{c: r.get(c, "") for c in cols} for r in pr.blocks], columns=cols,
-                  caption="per NC block: feed [mm/min], length [mm], duration [s], largest |tracking error| "
-                          "per axis and the contour error RMS / MAX / signed peak [µm]; with dwell: a cutting "
-                          "block's MAX with the dwells (G4) right after it, what its flag judges; flag = above "
-                          "the tolerance (rapids, and their in-position waits, are not flagged)")
+                  caption="per NC block: the twin's predicted errors; MAX is the largest magnitude, the signed "
+                          "peak keeps the side (+ left of the direction of travel); with the dwells after it: "
+                          "a cutting block's MAX including the dwells (G4) right after it, what the tolerance "
+                          "judges (rapids, and their in-position waits, are not judged)")
     if feed_plan is not None:
         fpn = feed_plan
         after = fpn.after.summary
@@ -216,8 +219,8 @@ def plan_report(program, pr, model=None, tol_mm=None, feed_plan=None, fmu=None, 
             + ("Every cutting block is within the tolerance." if fpn.reachable else
                "Some blocks stay above the tolerance even at the lowest override: the feed alone cannot "
                "bring them in (the axis jerk or acceleration limits set their error)."))
-        rep.add_table("feeds", fpn.rows, caption="per block: programmed, first-pass and new feed [mm/min], "
-                      "override [%], largest |contour error| before / after [µm], block time before / after [s]")
+        rep.add_table("feeds", fpn.rows, caption="per block: programmed, first-pass and new feed, the override, "
+                      "the predicted contour error MAX and the block time before and after the optimisation")
         path_figure(rep, "path_optimised", fpn.after, title="optimised:")
         # overrides keyed by the tables' block number (1-based), not the 0-based block index
         rep.add_data("feed_plan", {"overrides": {str(k + 1): v for k, v in fpn.overrides.items()},
