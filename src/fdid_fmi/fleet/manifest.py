@@ -546,11 +546,11 @@ def file_digest(path):
 # the compiled extension (kernel_ext: the pole search's regressor filter) run in identification
 # and simulation; pipeline/ holds the identification options, their value parsers and the trace
 # options; api.py is what an entry calls (it imports the planner, and the planner the virtual
-# machine's S-curves); report.py writes entry.html
+# machine's S-curves); report.py writes entry.html, with the column labels of labels.py
 PIPELINE_SOURCES = ("io", "identify", "fmu", "fmu_templates", "diagnose", "fleet", "trace.py", "units.py",
                     "signals.py", "model.py", "simulate.py", "metrics.py", "errors.py", "outputs.py",
-                    "kernel.py", "kernel_ext", "report.py", "workers.py", "pipeline", "api.py", "plan",
-                    "virtual")
+                    "kernel.py", "kernel_ext", "report.py", "labels.py", "workers.py", "pipeline", "api.py",
+                    "plan", "virtual")
 
 
 def pipeline_files():
