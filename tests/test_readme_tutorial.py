@@ -19,11 +19,16 @@ README = ROOT / "README.md"
 EXAMPLES = ("virtual_xy_moves.csv", "virtual_circle.csv", "pocket_corner.nc")
 
 
-def tutorial_blocks():
+def section_blocks(heading):
+    """The bash and python blocks of the README section whose heading starts with ``heading``."""
     text = README.read_text(encoding="utf-8")
-    start = text.index("\n## Tutorial")
+    start = text.index(f"\n## {heading}")
     end = text.index("\n## ", start + 1)
     return re.findall(r"^```(bash|python)\n(.*?)^```", text[start:end], flags=re.S | re.M)
+
+
+def tutorial_blocks():
+    return section_blocks("Tutorial")
 
 
 def test_readme_is_a_short_guide_with_the_two_setup_commands():
@@ -35,7 +40,7 @@ def test_readme_is_a_short_guide_with_the_two_setup_commands():
     assert re.search(r"^pip install \.", blocks, flags=re.M)
 
 
-@pytest.mark.slow   # about 25 CPU-s: identify (rigid), export, validate, a short diagnose, plan
+@pytest.mark.slow   # about 45 CPU-s: identify (rigid, twice: command line and API), export, validate, a short diagnose, plan
 def test_tutorial_runs_and_the_fmu_in_fmpy_equals_fdid_simulate(tmp_path, monkeypatch):
     blocks = tutorial_blocks()
     kinds = [k for k, _ in blocks]
@@ -68,6 +73,17 @@ def test_tutorial_runs_and_the_fmu_in_fmpy_equals_fdid_simulate(tmp_path, monkey
     d = np.genfromtxt(tmp_path / "examples" / "virtual_circle.csv", delimiter=",", names=True)
     assert np.array_equal(ns["e_x"], d["x_cmd_mm"] - res["x_x"])
     assert np.max(np.abs(ns["e_x"] - pred["x_e_pred_mm"])) <= 1e-9
+
+    # the Python API section, in the same folder: the model the command line identified
+    api = section_blocks("Python API")
+    assert [k for k, _ in api] == ["python"], api
+    ns = {}
+    exec(compile(api[0][1], "README Python API", "exec"), ns)
+    from fdid_fmi import DriveModel
+    cli_model = DriveModel.load(tmp_path / "model.json")
+    assert np.array_equal(ns["model"].A, cli_model.A) and np.array_equal(ns["model"].C, cli_model.C)
+    assert ns["check"].ok, ns["check"].problems
+    assert ns["check"].max_abs_diff_reference_mm <= 1e-9
 
 
 def test_cli_reference_is_generated_from_the_help_pages(tmp_path):
