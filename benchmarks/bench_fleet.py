@@ -1,6 +1,7 @@
 """Fleet throughput: entries per minute against the number of local workers, and where the time goes.
 
-Run:  .venv/bin/python benchmarks/bench_fleet.py [--machines 4] [--workers 1,2] [--no-diagnose]
+Run:  .venv/bin/python benchmarks/bench_fleet.py [--machines 10] [--workers 2] [--no-diagnose]
+          [--structure auto|rigid]
 Writes benchmarks/results/bench_fleet.json and prints a markdown table.
 
 A virtual fleet (``fdid_fmi.fleet.virtual``: ``--machines`` two-axis machines, half with
@@ -10,7 +11,9 @@ unchanged (must do no work). Per entry the wall time of each stage (identify / e
 diagnose) is read from the entries' results. Entries per minute = entries / wall time of the run,
 including the pool's start-up. Worker CPU = user + system time of the pool's processes (they are
 reaped when the pool shuts down): on a machine shared with other jobs the wall time depends on the
-CPU share the pool gets, the CPU per entry does not.
+CPU share the pool gets, the CPU per entry does not; axes per CPU-hour = 3600 / worker CPU per entry.
+``--structure auto`` (default) identifies as ``fdid identify`` does by default (structure chosen
+from the data); ``rigid`` fixes the thesis's rigid-body structure.
 """
 from __future__ import annotations
 
@@ -38,17 +41,19 @@ STAGES = ("identify_s", "export_s", "validate_s", "diagnose_s")
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--machines", type=int, default=4, help="two-axis machines (default 4: 8 entries)")
-    ap.add_argument("--workers", default="1,2", help="worker counts to measure (default 1,2)")
+    ap.add_argument("--machines", type=int, default=10, help="two-axis machines (default 10: 20 axes)")
+    ap.add_argument("--workers", default="2", help="worker counts to measure (default 2)")
+    ap.add_argument("--structure", choices=("auto", "rigid"), default="auto",
+                    help="identification structure of every entry (default auto: fdid identify's default)")
     ap.add_argument("--no-diagnose", action="store_true", help="leave diagnosis out")
     args = ap.parse_args(argv)
     counts = [int(w) for w in args.workers.split(",")]
     rows, split = [], {}
     with tempfile.TemporaryDirectory(prefix="bench_fleet_") as tmp:
         tmp = Path(tmp)
-        # the thesis's rigid-body structure: the scheduler's throughput, not the structure choice
+        extra = {"structure": "rigid"} if args.structure == "rigid" else None
         man = write_virtual_fleet(tmp / "data", n_machines=args.machines, nights=(1,),
-                                  diagnose=not args.no_diagnose, extra_options={"structure": "rigid"})[1]
+                                  diagnose=not args.no_diagnose, extra_options=extra)[1]
         for w in counts:
             ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
             wall, fr = timed(lambda: run_fleet(man, tmp / f"w{w}", workers=w, progress=False))
@@ -61,21 +66,23 @@ def main(argv=None):
             split[w] = tm
             rows.append({"workers": w, "entries": n, "failed": len(fr.failed), "wall_s": wall,
                          "worker_cpu_s": cpu, "cpu_s_per_entry": cpu / n,
+                         "axes_per_cpu_hour": 3600.0 * n / cpu if cpu > 0 else None,
                          "entries_per_min": 60.0 * n / wall, "rerun_s": t_rerun,
                          "rerun_executed": len(again.executed), **{f"mean_{k}": v for k, v in tm.items()}})
     res = {"machine": platform.platform(), "python": platform.python_version(), "machines": args.machines,
-           "diagnose": not args.no_diagnose, "rows": rows,
+           "structure": args.structure, "diagnose": not args.no_diagnose, "rows": rows,
            "note": "wall time of whole runs on a shared 2-core machine; per-stage times are means over "
                    "the entries (each entry's stages run one after the other in one worker)"}
     OUT.parent.mkdir(parents=True, exist_ok=True)
     OUT.write_text(json.dumps(res, indent=1))
-    print(f"virtual fleet: {2 * args.machines} axes, diagnosis {'on' if res['diagnose'] else 'off'}\n")
-    print("| workers | entries | wall [s] | entries/min | worker CPU [s/entry] | identify [s] | export [s] | "
-          "validate [s] | diagnose [s] | entry total [s] | rerun [s] (work done) |")
-    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print(f"virtual fleet: {2 * args.machines} axes, structure {args.structure}, "
+          f"diagnosis {'on' if res['diagnose'] else 'off'}\n")
+    print("| workers | entries | wall [s] | entries/min | worker CPU [s/entry] | axes per CPU-hour | identify [s] | "
+          "export [s] | validate [s] | diagnose [s] | entry total [s] | rerun [s] (work done) |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
         print(f"| {r['workers']} | {r['entries']} | {r['wall_s']:.1f} | {r['entries_per_min']:.1f} | "
-              f"{r['cpu_s_per_entry']:.1f} | "
+              f"{r['cpu_s_per_entry']:.1f} | {r['axes_per_cpu_hour'] or float('nan'):.0f} | "
               f"{r['mean_identify_s']:.2f} | {r['mean_export_s']:.2f} | {r['mean_validate_s']:.2f} | "
               f"{r['mean_diagnose_s']:.2f} | {r['mean_total_s']:.2f} | {r['rerun_s']:.2f} "
               f"({r['rerun_executed']} entries) |")
