@@ -73,3 +73,9 @@ def test_warm_starts_drop_or_add_poles_to_the_candidates_counts(monkeypatch):
     # the added pair sits at a quarter of the sampling rate: the r2c1 fit nearly as it was
     assert real == [3.0, 40.0] and cplx == [(6.0, 1.0), (250.0, 0.7)]
     assert len(warm_starts(candidate("r1c2-noI"), r2c1)) == 2
+
+
+def test_vp_refuses_when_no_objective_is_finite():
+    with pytest.raises(InputError, match="no candidate with a finite prediction error"):
+        run_search(lambda x: float("nan"), [0.0, 0.0], [1.0, 1.0], method="vp",
+                   residuals=lambda x: np.full(3, np.nan))

@@ -28,6 +28,15 @@ axis a second complex pair, a P/PD position loop a friction d.c. gain (the 1/P(s
    was set on the virtual drive, where without it the periodic run's r2c2 went from cubic to
    quadratic (-4.0 % training, +8.4 % held out); with it no virtual run changes form.
 
+Search. Every candidate is a pole search with LS projection (``pole_search.identify_mimo``); by
+default with variable projection (``search.py``, method ``vp``): each candidate's Gauss-Newton
+searches start from its Sobol screen and from the poles of a fitted neighbour (:func:`warm_starts`:
+r2c1's for the other structures, each sat-law structure's for its play version, the kept
+structure's for its other forms), and the play widths are ranked at r2c2's poles
+(:func:`screen_play`) so that only the best width is searched. Fits that do not depend on each
+other run side by side. ``method="de"`` fits every candidate by differential evolution from
+scratch: the thorough search, at about ten times the CPU time.
+
 Determined predictions. The kept structure's rounding sensitivity is measured and
 recorded (``sensitivity_mm``: how far its training free run moves when its commands carry 1e-12 mm
 of noise, :func:`~fdid_fmi.simulate.rounding_sensitivity`); above ``SENSITIVITY_MAX`` (a tenth)
@@ -535,6 +544,8 @@ def identify_auto(traces, axis="x", same_sample=None, v_tilde=None, method="vp",
         (default: every form of ``regressors.CHOSEN_FROM`` tried on r2c1, then on the kept
         structure: steps 1 and 5 of the module docstring)
     v_tilde, method, seed, maxiter, velocity, ma_order : as :func:`~.pole_search.identify_mimo`
+        (``method``: ``vp``, the default, runs the warm-started searches of the module
+        docstring's "Search"; any other method fits every candidate from scratch)
     workers : processes fitting candidates in parallel (None: every core, ``os.cpu_count()``; 1: in
         this process; :func:`fdid_fmi.workers.process_pool`); the fits are the same for any
         number, to the last bit when this process runs BLAS on one thread as the workers do
