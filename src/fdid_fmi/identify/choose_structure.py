@@ -380,10 +380,11 @@ def warm_starts(cand, model, Ts=None):
     (each in turn) or added, until the counts are ``cand``'s. An added pole sits at a quarter of
     the sampling rate (a pair with zeta 0.7): fast enough to leave the neighbour's fit nearly as
     it was, so the search starts no worse than that fit and moves the new pole where the data
-    need it. At most two start points (plant2's r2c1 to rigid: either real pole may be the
-    rigid body's)."""
+    need it (a lightly damped drive-train mode is left to the Sobol screen beside these starts).
+    At most two start points (plant2's r2c1 to rigid: either real pole may be the rigid body's)."""
     real, cplx, vt = poles_of(model)
     fast = 0.25 / (Ts or model.Ts)
+    new_pair = (fast, 0.7)
     reals = [real]
     while len(reals[0]) > cand.n_real:
         reals = [r[:k] + r[k + 1:] for r in reals for k in range(len(r))]
@@ -391,7 +392,7 @@ def warm_starts(cand, model, Ts=None):
     pairs = [cplx]
     while len(pairs[0]) > cand.n_complex:
         pairs = [c[:k] + c[k + 1:] for c in pairs for k in range(len(c))]
-    pairs = [c + [(fast, 0.7)] * (cand.n_complex - len(c)) for c in pairs]
+    pairs = [c + [new_pair] * (cand.n_complex - len(c)) for c in pairs]
     out = []
     for r in reals:
         for c in pairs:
