@@ -214,9 +214,12 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
         plain = [_finish(prob, structure, par, f, par.canonical(x), False) for f, x in cands[1:]]
         order = sorted((k for k, c in enumerate(plain) if c is not None), key=lambda k: plain[k]["free_run"])
         cands = cands[:1] + [cands[1 + k] for k in order[:VP_REFINED - 1]]
+    polished = None
     if method == "vp" and par.lo.size and _selection_outputs(structure):
-        cands = cands + [_polish_free_run(prob, structure, par, cands, fun, do_refine)]
-    finished = [_finish(prob, structure, par, f, par.canonical(x), do_refine) for f, x in cands]
+        polished, (k0, done) = _polish_free_run(prob, structure, par, cands, fun, do_refine)
+        cands = cands + [polished]
+    finished = [done if polished and k == k0 and done is not None
+                else _finish(prob, structure, par, f, par.canonical(x), do_refine) for k, (f, x) in enumerate(cands)]
     if finished[0] is None:
         real, cplx, vt = par.decode(par.canonical(cands[0][1]))
         if not np.all(np.isfinite(prob.project(par.polynomial(real, cplx), vt).rms)):
@@ -314,7 +317,9 @@ POLISH_EVALS_PER_DIM = 10
 def _polish_free_run(prob, structure, par, cands, best, refine):
     """A pole set with a lower training free run among those whose LS objective is within
     ``SELECT_MARGIN`` of ``best``: a Nelder-Mead search on the free-run objective from the
-    candidate with the lowest free run. Returns (LS objective, search vector).
+    candidate with the lowest free run. Returns ((LS objective, search vector), (index of the
+    start in ``cands``, its :func:`_finish` with the refinement or None)): the caller need not
+    finish the start again.
 
     Each pole set's model is the LS projection's; with ``refine``, as in
     :func:`refine_friction`, its friction regressor is then replaced by the friction its own
@@ -353,9 +358,11 @@ def _polish_free_run(prob, structure, par, cands, best, refine):
             v = free_run_objective(prob, model, sel)[0]
         return v if np.isfinite(v) else 1e3
 
-    x0 = min((par.canonical(x) for _, x in cands), key=free_run)
+    k0 = min(range(len(cands)), key=lambda k: free_run(par.canonical(cands[k][1])))
+    x0 = par.canonical(cands[k0][1])
+    done = None
     if refine and fidx:
-        done = _finish(prob, structure, par, best, x0, True)
+        done = _finish(prob, structure, par, cands[k0][0], x0, True)
         if done is not None and done["refinement"]["chosen"]["iterations"] > 0:
             band[0] = done["refinement"]["chosen"]["band"]
     simplex = np.vstack([x0] + [x0 + 0.05 * e * (par.hi - par.lo) for e in np.eye(x0.size)])
@@ -363,7 +370,7 @@ def _polish_free_run(prob, structure, par, cands, best, refine):
                             options={"maxfev": POLISH_EVALS_PER_DIM * x0.size, "initial_simplex": simplex})
     x = np.clip(res.x, par.lo, par.hi)
     real, cplx, vt = par.decode(x)
-    return prob.project(par.polynomial(real, cplx), vt).J, x
+    return (prob.project(par.polynomial(real, cplx), vt).J, x), (k0, done)
 
 
 def _finish(prob, structure, par, fun, x, refine):
