@@ -28,6 +28,15 @@ axis a second complex pair, a P/PD position loop a friction d.c. gain (the 1/P(s
    was set on the virtual drive, where without it the periodic run's r2c2 went from cubic to
    quadratic (-4.0 % training, +8.4 % held out); with it no virtual run changes form.
 
+Search. Every candidate is a pole search with LS projection (``pole_search.identify_mimo``); by
+default with variable projection (``search.py``, method ``vp``): each candidate's Gauss-Newton
+searches start from its Sobol screen and from the poles of a fitted neighbour (:func:`warm_starts`:
+r2c1's for the other structures, each sat-law structure's for its play version, the kept
+structure's for its other forms), and the play widths are ranked at r2c2's poles
+(:func:`screen_play`) so that only the best width is searched. Fits that do not depend on each
+other run side by side. ``method="de"`` fits every candidate by differential evolution from
+scratch: the thorough search, at about ten times the CPU time.
+
 Determined predictions. The kept structure's rounding sensitivity is measured and
 recorded (``sensitivity_mm``: how far its training free run moves when its commands carry 1e-12 mm
 of noise, :func:`~fdid_fmi.simulate.rounding_sensitivity`); above ``SENSITIVITY_MAX`` (a tenth)
@@ -68,6 +77,7 @@ from __future__ import annotations
 import dataclasses
 import time
 import warnings
+from concurrent.futures import Future
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -260,8 +270,10 @@ def _on_bound(rec: PoleSearchRecord, bounds: Bounds):
 
 def fit_candidate(job):
     """Identify one candidate and score its free run (a process-pool task:
-    ``job`` = (candidate, same_sample, traces, axis, options)). Returns (CandidateScore, model)."""
-    cand, same_sample, traces, axis, opts = job
+    ``job`` = (candidate, same_sample, traces, axis, options[, warm]), ``warm`` the start points
+    of a ``vp`` search, see :func:`warm_starts`). Returns (CandidateScore, model)."""
+    cand, same_sample, traces, axis, opts = job[:5]
+    warm = job[5] if len(job) > 5 else ()
     t0 = time.perf_counter()
     st = cand.structure(axis, same_sample, opts["velocity"], opts["ma_order"], opts["outputs"])
     bounds = cand.bounds(traces[0].Ts)
@@ -274,7 +286,7 @@ def fit_candidate(job):
         with warnings.catch_warnings():   # ill-conditioned LS of the larger structures: scored anyway
             warnings.simplefilter("ignore", LinAlgWarning)
             model = identify_mimo(traces, st, bounds=bounds, v_tilde=opts["v_tilde"], seed=opts["seed"],
-                                  maxiter=opts["maxiter"], method=opts["method"])
+                                  maxiter=opts["maxiter"], method=opts["method"], warm=warm)
         res.free_run_rms_mm = free_run_rms(model, traces, axis, opts["outputs"])
         rec = PoleSearchRecord.from_dict(model.identification)
         res.real_hz, res.complex_hz_zeta = rec.real_hz, rec.complex_hz_zeta
@@ -321,17 +333,19 @@ def _run(jobs, workers):
         return list(pool.map(fit_candidate, jobs))
 
 
-def other_forms(best, traces, axis, options, workers=1, parsimony=PARSIMONY, fitted=()):
+def other_forms(best, traces, axis, options, workers=1, parsimony=PARSIMONY, fitted=(), model=None):
     """Step 5 of the module docstring: the chosen structure fitted in the other same-sample forms.
 
     ``fitted``: (CandidateScore, DriveModel) already at hand (step 1's r2c1 fits), not fitted again.
+    ``model``: ``best``'s model, whose poles start the ``vp`` searches of the other forms.
     Returns (taken, fits): ``taken`` the (CandidateScore, DriveModel) whose free run is lower
     than ``best``'s by ``parsimony`` (the lowest; None when none is), ``fits`` all of them.
     """
     forms = [f for f in CHOSEN_FROM if f != best.same_sample]
     have = [rm for rm in fitted if rm[0].label == best.label and rm[0].same_sample in forms]
     todo = [f for f in forms if f not in {r.same_sample for r, _ in have}]
-    fits = have + _run([(candidate(best.label), f, traces, axis, options) for f in todo], workers)
+    warm = warm_starts(candidate(best.label), model) if model is not None else ()
+    fits = have + _run([(candidate(best.label), f, traces, axis, options, warm) for f in todo], workers)
     better = [rm for rm in fits if rm[0].free_run_rms_mm <= (1 - parsimony) * best.free_run_rms_mm]
     return (min(better, key=lambda rm: rm[0].free_run_rms_mm) if better else None), fits
 
@@ -346,13 +360,122 @@ def keep(results, probes, traces, axis, options, workers=1, parsimony=PARSIMONY,
     best = choose([r for r, _ in results], parsimony)
     if not own_form:
         return best, results, probes
-    taken, fits = other_forms(best, traces, axis, options, workers, parsimony, fitted=probes)
+    model = next((m for r, m in results if r is best), None)
+    taken, fits = other_forms(best, traces, axis, options, workers, parsimony, fitted=probes, model=model)
     new = [rm for rm in fits if rm is not taken and not any(rm is q for q in probes)]
     probes = [rm for rm in probes if rm is not taken] + new
     return (taken[0] if taken else best), results + ([taken] if taken else []), probes
 
 
-def fit_structures(traces, axis="x", same_sample=None, v_tilde=None, method="de", seed=0, maxiter=None,
+def poles_of(model):
+    """(real_hz, complex_hz_zeta, v_tilde dict) of a pole-search model: a warm start."""
+    rec = PoleSearchRecord.from_dict(model.identification)
+    return (list(rec.real_hz), [tuple(c) for c in rec.complex_hz_zeta],
+            dict(rec.extra.get("v_tilde_regressor_mm_s", {})))
+
+
+def warm_starts(cand, model, Ts=None):
+    """Start points of ``cand``'s ``vp`` search from a fitted ``model`` of a neighbouring
+    structure: its poles, a real pole dropped (each in turn) or added, a complex pair dropped
+    (each in turn) or added, until the counts are ``cand``'s. An added pole sits at a quarter of
+    the sampling rate (a pair with zeta 0.7): fast enough to leave the neighbour's fit nearly as
+    it was, so the search starts no worse than that fit and moves the new pole where the data
+    need it (a lightly damped drive-train mode is left to the Sobol screen beside these starts).
+    At most two start points (plant2's r2c1 to rigid: either real pole may be the rigid body's)."""
+    real, cplx, vt = poles_of(model)
+    fast = 0.25 / (Ts or model.Ts)
+    new_pair = (fast, 0.7)
+    reals = [real]
+    while len(reals[0]) > cand.n_real:
+        reals = [r[:k] + r[k + 1:] for r in reals for k in range(len(r))]
+    reals = [r + [fast] * (cand.n_real - len(r)) for r in reals]
+    pairs = [cplx]
+    while len(pairs[0]) > cand.n_complex:
+        pairs = [c[:k] + c[k + 1:] for c in pairs for k in range(len(c))]
+    pairs = [c + [new_pair] * (cand.n_complex - len(c)) for c in pairs]
+    out = []
+    for r in reals:
+        for c in pairs:
+            if (r, c) not in [(a, b) for a, b, _ in out]:
+                out.append((r, c, vt))
+    return out[:2]
+
+
+def _fit_structures_vp(traces, axis, forms, opts, submit, run):
+    """Steps 1 to 3 with the ``vp`` search: each structure's search starts from the poles of a
+    fitted neighbour (:func:`warm_starts`) beside its Sobol screen, and the play widths are
+    ranked at r2c2's poles before one of them is searched.
+
+    Stage 1 fits r2c1 in every form; stage 2 every other sat-law structure in the chosen form,
+    from r2c1's poles; stage 3 ranks the play widths by the free run of r2c2's poles with the
+    numerators projected for each width (:func:`screen_play`), searches the best one from there,
+    and where the play law comes within the parsimony margin, every other structure with the
+    play from its own sat-law fit's poles."""
+    probe = family(True)[1]                          # r2c1
+    largest = family(True)[-1]                       # r2c2
+    rest = [c for c in family(True) + family(False) if c != probe]
+    first = [f.result() for f in [submit((probe, f)) for f in forms]]
+    r2c1 = min(first, key=lambda rm: rm[0].free_run_rms_mm)
+    form = r2c1[0].same_sample
+    ok = r2c1[1] is not None
+    # the largest first: the play widths are ranked at its poles while the others run
+    rest = sorted(rest, key=lambda c: c != largest)
+    futures = [submit((c, form, warm_starts(c, r2c1[1]) if ok else ())) for c in rest]
+    base = futures[0].result()
+    if base[1] is None:
+        width_futures = [submit((with_play(largest, b), form)) for b in PLAY_WIDTHS_MM]
+        sat = [r2c1] + [f.result() for f in futures]
+        widths = [f.result() for f in width_futures]
+        width = min(widths, key=lambda rm: rm[0].free_run_rms_mm)
+    else:
+        screened = [screen_play(with_play(largest, b), form, traces, axis, opts, base[1])
+                    for b in PLAY_WIDTHS_MM]
+        k = min(range(len(screened)), key=lambda i: screened[i][0].free_run_rms_mm)
+        cand = with_play(largest, PLAY_WIDTHS_MM[k])
+        width_future = submit((cand, form, warm_starts(cand, base[1])))
+        sat = [r2c1] + [f.result() for f in futures]
+        width = width_future.result()
+        widths = screened[:k] + [width] + screened[k + 1:]
+    by_label = {r.label: (r, m) for r, m in sat}
+    b = width[0].label.rpartition("-play")[2]
+    b = float(b[:-2]) * 1e-3
+    play = []
+    if width[0].free_run_rms_mm <= (1 + PARSIMONY) * min(r.free_run_rms_mm for r, _ in sat):
+        jobs = []
+        for c in family(True) + family(False):
+            if c == largest:
+                continue
+            m = by_label[c.label][1]
+            jobs.append((with_play(c, b), form, warm_starts(c, m) if m is not None else ()))
+        play = run(jobs)
+    return sat + [width] + play, [rm for rm in first if rm is not r2c1] + [rm for rm in widths if rm is not width]
+
+
+def screen_play(cand, form, traces, axis, opts, model):
+    """``cand`` (a play-law structure) with ``model``'s poles held, its numerators projected
+    (one LS projection and the free runs of :func:`~.pole_search.identify_mimo`'s finish):
+    a candidate that ranks play widths for the price of a projection. Returns
+    (CandidateScore, DriveModel)."""
+    t0 = time.perf_counter()
+    real, cplx, _ = poles_of(model)
+    st = cand.structure(axis, form, opts["velocity"], opts["ma_order"], opts["outputs"])
+    res = CandidateScore(cand.label, parameter_count(st) + 1, form, float("inf"), 0.0,
+                         real_hz=real, complex_hz_zeta=[list(c) for c in cplx])
+    held = dataclasses.replace(st, n_real=0, n_complex=0, locked_real_hz=list(st.locked_real_hz) + real,
+                               locked_complex=list(st.locked_complex) + [tuple(c) for c in cplx])
+    out = None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", LinAlgWarning)
+            out = identify_mimo(traces, held, bounds=Bounds([], [], []), v_tilde=opts["v_tilde"])
+        res.free_run_rms_mm = free_run_rms(out, traces, axis, opts["outputs"])
+    except InputError as exc:
+        res.error = str(exc)
+    res.wall_s = time.perf_counter() - t0
+    return res, out
+
+
+def fit_structures(traces, axis="x", same_sample=None, v_tilde=None, method="vp", seed=0, maxiter=None,
                    velocity="backward", ma_order=1, workers=1):
     """Steps 1 to 3 of the module docstring: every candidate identified and scored
     (``workers`` > 1: in that many processes).
@@ -377,6 +500,18 @@ def fit_structures(traces, axis="x", same_sample=None, v_tilde=None, method="de"
     largest = family(True)[-1]                       # r2c2
     rest = [c for c in family(True) + family(False) if c != probe]
     try:
+        if method == "vp":
+            def submit(job):
+                job = (job[0], job[1], traces, axis, opts) + tuple(job[2:])
+                if pool is not None:
+                    return pool.submit(fit_candidate, job)
+                done = Future()
+                done.set_result(fit_candidate(job))
+                return done
+
+            def run_jobs(jobs):
+                return [f.result() for f in [submit(j) for j in jobs]]
+            return _fit_structures_vp(traces, axis, forms, opts, submit, run_jobs)
         first = run([probe], forms)
         form = min(first, key=lambda rm: rm[0].free_run_rms_mm)[0].same_sample
         # the play law's width on the largest structure (where missing dynamics cannot stand in
@@ -398,7 +533,7 @@ def fit_structures(traces, axis="x", same_sample=None, v_tilde=None, method="de"
     return results, [rm for rm in first if rm[0].same_sample != form] + [rm for rm in widths if rm is not width]
 
 
-def identify_auto(traces, axis="x", same_sample=None, v_tilde=None, method="de", seed=0, maxiter=None,
+def identify_auto(traces, axis="x", same_sample=None, v_tilde=None, method="vp", seed=0, maxiter=None,
                   velocity="backward", ma_order=1, workers=None, parsimony=PARSIMONY):
     """Pole search with the structure chosen from the data (see module docstring).
 
@@ -410,6 +545,8 @@ def identify_auto(traces, axis="x", same_sample=None, v_tilde=None, method="de",
         (default: every form of ``regressors.CHOSEN_FROM`` tried on r2c1, then on the kept
         structure: steps 1 and 5 of the module docstring)
     v_tilde, method, seed, maxiter, velocity, ma_order : as :func:`~.pole_search.identify_mimo`
+        (``method``: ``vp``, the default, runs the warm-started searches of the module
+        docstring's "Search"; any other method fits every candidate from scratch)
     workers : processes fitting candidates in parallel (None: every core, ``os.cpu_count()``; 1: in
         this process; :func:`fdid_fmi.workers.process_pool`); the fits are the same for any
         number, to the last bit when this process runs BLAS on one thread as the workers do

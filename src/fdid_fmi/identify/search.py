@@ -2,9 +2,21 @@
 
 The thesis used MATLAB GlobalSearch / MultiStart / pattern search; here the user picks one of
 
-``de``          scipy.optimize.differential_evolution (default; Sobol initialisation, polished)
+``vp``          variable projection: a Sobol screen, then bounded Gauss-Newton (trust-region
+                reflective) searches on the residual vector from the best distinct screen points
+                and the given start points (default of the structure choice)
+``de``          scipy.optimize.differential_evolution (Sobol initialisation, polished): the
+                thorough global search
 ``multistart``  Sobol starting points, each refined by a bounded local search (L-BFGS-B)
 ``direct``      scipy.optimize.direct (deterministic DIRECT pattern search), then polished
+
+Variable projection (Golub and Pereyra): the LS projection eliminates the numerators, which
+enter linearly, so the objective is the norm of a residual vector that depends on the poles
+(and v_tilde) alone. Its Jacobian (finite differences, one projection per search coordinate)
+gives Gauss-Newton steps that converge in a few iterations where DE's population needs thousands
+of projections. The search is local; its global part is the screen and the start points (a
+smaller structure's optimum, another same-sample form's), and the distinct local minima it
+ends in are kept for the free-run selection of the caller.
 
 Every method is deterministic for a given seed and keeps the distinct local minima it found,
 ranked by objective, among all the points it evaluated (thesis section 7.2.2: all local minima
@@ -23,7 +35,23 @@ import numpy as np
 from scipy import optimize
 from scipy.stats import qmc
 
-METHODS = ("de", "multistart", "direct")
+METHODS = ("vp", "de", "multistart", "direct")
+VP_SCREEN_PER_DIM = 8       # Sobol screen of ``vp``: this many points per search coordinate
+VP_STARTS = 3               # local searches of ``vp`` from the best distinct screen points ...
+VP_WARM_STARTS = 1          # ... of them beside warm start points
+VP_MAX_STARTS = 4           # ... more, up to this many in all, while the best end point is not confirmed
+# two local searches ending within this relative objective agree; two of three agreeing are
+# needed: two of two agreed on a minimum 1 % above the best on the feed-forward virtual drive
+VP_CONFIRM_RTOL = 1e-3
+# relative finite-difference step of the Jacobian: the projected residual carries rounding of the
+# normal equations (conditions near 1e12); steps of 1e-6 stalled the searches on plant2's r2c1
+# 4-8 % above the minimum that steps of 1e-4 reach
+VP_DIFF_STEP = 1e-4
+# steps (residual evaluations besides the Jacobians') of each local search: most end in 5-40;
+# the few that crawl on (110 Jacobians of r1c2-noI on the feed-forward virtual drive) end in
+# minima no better than the others'
+VP_MAXITER = 20
+VP_TOL = 1e-4               # relative change of cost / step size that ends a local search
 
 
 @dataclass
@@ -79,8 +107,72 @@ def distinct_minima(points, scale, rtol=0.02, keep=10):
     return out
 
 
+def _vp(cnt, residuals, lo, hi, seed, maxiter, starts, warm):
+    """The ``vp`` search (module docstring): returns its local searches' end points, best first.
+
+    The screen ranks Sobol points by the objective (one projection each, no residual vector);
+    the local searches start from the warm points, then from the best screen points that are
+    distinct (10 % of the box apart): ``starts`` of them without warm points, ``VP_WARM_STARTS``
+    with them.
+    Then more run (up to ``VP_MAX_STARTS`` in all) while no two searches end at the same best
+    objective: an unconfirmed optimum means the basins are not yet covered."""
+    dim = lo.size
+    scale = hi - lo
+    n = int(2 ** np.ceil(np.log2(VP_SCREEN_PER_DIM * dim)))     # Sobol points come in powers of 2
+    screen = qmc.scale(qmc.Sobol(dim, seed=seed).random(n), lo, hi)
+    vals = np.array([cnt(p) for p in screen])
+    order = [screen[k] for k in np.argsort(vals, kind="stable") if np.isfinite(vals[k])]
+    queue = list(warm) + distinct_points(order, scale, rtol=0.1)
+
+    def rfun(x):
+        cnt.nfev += 1
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            r = np.asarray(residuals(x), float)
+        v = float(np.sqrt(r @ r))
+        if not np.isfinite(v):
+            return np.full(r.size, 1e6)
+        cnt.n_finite += 1
+        cnt.seen.append((v, np.array(x)))
+        return r
+
+    # every warm start is searched, and one screen point (``starts`` of them without a warm start)
+    n_min = len(warm) + (VP_WARM_STARTS if warm else starts)
+    n_max = max(VP_MAX_STARTS, n_min)
+    ends = []
+    for k, x in enumerate(queue):
+        if k >= n_max or (k >= n_min and _confirmed(ends)):
+            break
+        x = np.clip(x, lo, hi)
+        # a start on the bound: trf moves it strictly inside itself. gtol is off: the gradient
+        # J^T r scales with the residual (1e-4 of W_z on a good fit) and ended searches at once
+        with np.errstate(invalid="ignore", over="ignore"):
+            res = optimize.least_squares(rfun, x, bounds=(lo, hi), method="trf", x_scale=scale,
+                                         diff_step=VP_DIFF_STEP, max_nfev=maxiter,
+                                         ftol=VP_TOL, xtol=VP_TOL, gtol=None)
+        f = float(np.sqrt(2 * res.cost))
+        ends.append((f if np.isfinite(f) else np.inf, np.array(res.x)))
+    if not ends:
+        ends = [(float(vals.min()), screen[int(np.argmin(vals))])]
+    return sorted(ends, key=lambda p: p[0])
+
+
+def _confirmed(ends):
+    """Two local searches end within ``VP_CONFIRM_RTOL`` of the best objective."""
+    fs = sorted(f for f, _ in ends)
+    return len(fs) >= 2 and fs[1] <= fs[0] * (1 + VP_CONFIRM_RTOL)
+
+
+def distinct_points(points, scale, rtol):
+    """``points`` (best first) without those within ``rtol`` of the box ``scale`` of an earlier one."""
+    out = []
+    for x in points:
+        if all(np.max(np.abs((x - y) / scale)) > rtol for y in out):
+            out.append(x)
+    return out
+
+
 def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, progress=False,
-               starts=None, local_polish=True, x0=None):
+               starts=None, local_polish=True, x0=None, residuals=None, warm=()):
     """Minimise ``fun`` over the box [lo, hi].
 
     Parameters
@@ -90,11 +182,16 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
     method : one of METHODS
     seed : int, makes the search deterministic
     maxiter : DE generations (default 40 + 10 dim), iterations of each multistart local search
-        (default 200), DIRECT evaluations (default 1500)
+        (default 200), DIRECT evaluations (default 1500), residual evaluations of each ``vp``
+        local search in units of (dim + 1) (default 30)
     popsize : DE population per dimension (default 8)
     starts : number of multistart points (default 8 + 4 dim)
     x0 : array, optional, a start point (clipped to the box): a member of DE's first population,
-        the first multistart point; for every method the result is no worse than ``fun(x0)``
+        the first multistart point, ``vp``'s first local search; for every method the result is
+        no worse than ``fun(x0)``
+    residuals : callable(x) -> 1-D array, needed by ``vp``: the residual vector whose norm is
+        ``fun(x)``
+    warm : sequence of arrays, more start points of ``vp``'s local searches (after ``x0``)
 
     Returns
     -------
@@ -126,6 +223,12 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
     elif method == "multistart":
         starts = starts or (8 + 4 * dim)
         total = starts * 40 * dim
+    elif method == "vp":
+        if residuals is None:
+            raise InputError("the vp search needs the residual vector (residuals=)", column="method")
+        starts = starts or VP_STARTS
+        maxiter = maxiter or VP_MAXITER
+        total = VP_SCREEN_PER_DIM * dim + VP_MAX_STARTS * maxiter * (dim + 1)
     else:
         maxiter = maxiter or 1500
         total = maxiter
@@ -141,7 +244,11 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
 
     pts = []
     try:
-        if method == "multistart":
+        if method == "vp":
+            pts = _vp(cnt, residuals, lo, hi, seed, maxiter, starts,
+                      ([x0] if x0 is not None else []) + [np.clip(np.asarray(w, float), lo, hi) for w in warm])
+            best = pts[0]
+        elif method == "multistart":
             sob = qmc.Sobol(dim, seed=seed)
             X0 = qmc.scale(sob.random(int(2 ** np.ceil(np.log2(starts))))[:starts], lo, hi)
             if x0 is not None:
@@ -172,6 +279,7 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
                          f"out of range (positions in mm, velocities in mm/s: check the units and "
                          f"the scale of the trace)", column="pole search")
     return SearchResult(x=np.asarray(best[1]), fun=float(best[0]),
-                        minima=distinct_minima(pts + cnt.seen, scale, rtol=0.1), nfev=cnt.nfev,
+                        minima=distinct_minima(pts + cnt.seen, scale, rtol=0.1),
+                        nfev=cnt.nfev,
                         method=method)
 

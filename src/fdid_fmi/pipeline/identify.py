@@ -50,13 +50,17 @@ def add_identify_parser(sub):
                         "--no-friction/--v-tilde-range pin the structure")
     s.add_argument("--jobs", type=int_in(1, 1024, "--jobs"), default=None,
                    help="processes fitting the candidate structures of --structure auto (default: one per core)")
-    s.add_argument("--search", choices=("de", "multistart", "direct"), default="de",
-                   help="global optimiser (thesis: GlobalSearch / MultiStart / pattern search)")
+    s.add_argument("--search", choices=("vp", "de", "multistart", "direct"), default=None,
+                   help="optimiser of the poles: vp (variable projection: Sobol screen and Gauss-Newton "
+                        "searches from neighbouring structures' poles; default of --structure auto) or a "
+                        "global one (thesis: GlobalSearch / MultiStart / pattern search; de is the default "
+                        "of a pinned structure and the thorough choice for --structure auto)")
     s.add_argument("--seed", type=int_in(0, 2 ** 32 - 1, "the seed"), default=0,
                    help="random seed of the search, 0 .. 2**32-1 (default 0)")
     s.add_argument("--maxiter", type=int_in(1, 100000, "--maxiter"), default=None,
                    help="de: generations (default 40 + 10 x dimension); multistart: iterations of each "
-                        "local search (default 200); direct: evaluations (default 1500)")
+                        "local search (default 200); direct: evaluations (default 1500); vp: "
+                        "steps of each local search (default 20)")
     s.add_argument("--v-tilde", type=finite_float("--v-tilde", positive=True), default=None,
                    help="fix the friction transition velocity [mm/s] (default: searched)")
     s.add_argument("--v-tilde-range", default=None, metavar="LO:HI", help="search range of v_tilde [mm/s]")
@@ -352,13 +356,13 @@ def identify_from_args(trace, args, progress=True):
         return models[0] if len(models) == 1 else DriveModel.combine(models, method="full-ls")
     if structure_is_auto(args):
         models = [identify_auto(pieces, ax, same_sample=args.same_sample, v_tilde=args.v_tilde,
-                                    method=args.search, seed=args.seed, maxiter=args.maxiter,
+                                    method=args.search or "vp", seed=args.seed, maxiter=args.maxiter,
                                     velocity=args.velocity, ma_order=args.ma_order,
                                     workers=args.jobs) for ax in axes]
         return models[0] if len(models) == 1 else DriveModel.combine(models, method="pole-search")
     n_real, n_complex = _orders(args)
     bounds = bounds_from_args(args, trace.Ts, n_real, n_complex)
-    common = dict(bounds=bounds, v_tilde=args.v_tilde, method=args.search, seed=args.seed,
+    common = dict(bounds=bounds, v_tilde=args.v_tilde, method=args.search or "de", seed=args.seed,
                   maxiter=args.maxiter, progress=progress)
     if args.method == "pole-search":
         if n_real != 1 or n_complex != 1:
