@@ -33,7 +33,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import sparse
 
 from ..errors import InputError
 from ..model import (FEATURE_FUNCTIONS, LIBM_FUNCTIONS, DriveModel, QuasiStaticModel, delayed_input,
@@ -264,8 +263,8 @@ def build_layout(model):
 
 
 def sparse_rows(X):
-    """The nonzero entries of X by row (the C core's ``FdidRows``): scipy's compressed sparse
-    rows, whose columns ascend within a row when built from a dense array.
+    """The nonzero entries of X by row (the C core's ``FdidRows``: compressed sparse rows, the
+    columns ascending within a row; NaN counts as nonzero).
 
     Returns
     -------
@@ -273,9 +272,11 @@ def sparse_rows(X):
     col : (nnz,) int, their columns
     val : (nnz,) float, their values
     """
-    csr = sparse.csr_matrix(np.asarray(X, dtype=float))
-    csr.sort_indices()
-    return csr.indptr.astype(np.intc), csr.indices.astype(np.intc), csr.data
+    X = np.asarray(X, dtype=float)
+    rows, cols = np.nonzero(X)             # row-major: columns ascend within each row
+    start = np.zeros(X.shape[0] + 1, dtype=np.intc)
+    np.cumsum(np.bincount(rows, minlength=X.shape[0]), out=start[1:])
+    return start, cols.astype(np.intc), X[rows, cols]
 
 
 def step_rows(model):
