@@ -319,7 +319,7 @@ def simulate(machine, cmd, rng, name, source, dist_band_hz=3.0):
     return Trace(t=t, channels=chans, roles=roles, source=source, meta=meta)
 
 
-def case(seed, without=(), scale=1.0):
+def case(seed, without=(), scale=1.0, traces=True):
     """Build the case of a seed (module docstring).
 
     Parameters
@@ -328,6 +328,7 @@ def case(seed, without=(), scale=1.0):
     without : kinds of effects to leave out (the same case otherwise: same plant, paths, noise)
     scale : float, scales the number of moves of every trace (1: the benchmark's length, ~8-15 s
         of training data; smaller for fast tests)
+    traces : bool, simulate the traces (False: the draws alone, ``train`` and ``val`` empty)
 
     Returns
     -------
@@ -378,6 +379,8 @@ def case(seed, without=(), scale=1.0):
     settle = 0.3 + 6.0 / min(_loop_rate(a) for a in m.axes)
     train_cmd = _settled(train_cmd, settle, Ts)
     val_cmds = [(nm, _settled(c, settle, Ts)) for nm, c in val_cmds]
+    if not traces:
+        return Case(seed=int(seed), split=split_of(seed), machine=m, effects=kept, train=[], val=[], limits=lim)
     src = f"family:{seed}"
     train = [simulate(m, train_cmd, np.random.default_rng(noise_seed[0]), "moves", f"{src}:train", band)]
     val = [simulate(m, c, np.random.default_rng(noise_seed[1 + k]), nm, f"{src}:val:{nm}", band)
