@@ -10,10 +10,12 @@ effects on axis x):
 3. against the recorded truth: per effect kind present, named or not and what was named instead
    (confusion); on clean cases, false alarms; the held-out RMS of the position residual before and
    after; the fitted parameter against the true one (period, v_s, dead time, frequency, lost
-   motion, channel); and the first round's statistic / threshold of every detector.
+   motion, channel); and the first round's statistic / threshold of every detector. How visible
+   each effect is: the RMS shift of the motor-encoder channel of the first training trace it
+   causes (the case rebuilt without it, ``family.visibility``), over the encoder noise.
 
-Writes benchmarks/results/bench_family_diagnosis.json (partial results after every case) and
-prints markdown tables. BLAS pinned to one thread.
+Writes benchmarks/results/bench_family_diagnosis.json (``--quick``: ..._quick.json; partial
+results after every case) and prints markdown tables. BLAS pinned to one thread.
 
     .venv/bin/python benchmarks/bench_family_diagnosis.py --quick
     .venv/bin/python benchmarks/bench_family_diagnosis.py [--cases N] [--split calibration|held-out|all]
@@ -46,12 +48,13 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from family import KINDS, case, seeds  # noqa: E402
+from family import KINDS, case, seeds, visibility  # noqa: E402
 from fdid_fmi.diagnose import diagnose  # noqa: E402
 from fdid_fmi.diagnose.limits import NoteKind  # noqa: E402
 from fdid_fmi.identify.choose_structure import identify_auto  # noqa: E402
 
 OUT = ROOT / "benchmarks" / "results"
+OUT_DEFAULT = "bench_family_diagnosis.json"
 
 
 def code_state():
@@ -127,11 +130,12 @@ def run_case(seed, args):
            "truth": truth["effects"], "kinds": c.kinds, "samples_train": [t.n for t in c.train],
            "samples_val": c.val[0].n, "simulate_s": time.perf_counter() - t0,
            "controller": c.machine.axes[0].controller, "mass_kg": c.machine.axes[0].mass,
-           "channels": sorted(c.train[0].channels)}
+           "channels": sorted(c.train[0].channels), "visibility": visibility(c, args.scale)}
+    vis = out["visibility"]
     print(f"\n[seed {seed}, {c.split}] {len(c.machine.axes)} axis/axes, Ts {c.machine.Ts * 1e3:g} ms, "
           f"{c.machine.axes[0].controller}, {c.machine.axes[0].mass:.0f} kg; truth: "
-          + (", ".join(f"{e['kind']} {e['magnitude']:.4g} {e['unit']}" for e in truth["effects"]) or "clean"),
-          flush=True)
+          + (", ".join(f"{e['kind']} {e['magnitude']:.4g} {e['unit']} ({vis[e['kind']]['noise_ratio']:.3g} x noise)"
+                       for e in truth["effects"]) or "clean"), flush=True)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -190,7 +194,7 @@ def summarise(rows):
             k = e["kind"]
             s = per[k]
             s["cases"] += 1
-            s["magnitudes"].append((e["magnitude"], e["relative"]))
+            s["magnitudes"].append((e["magnitude"], r["visibility"][k]["noise_ratio"]))
             s["gains"].append(gain)
             if k in named:
                 s["named"] += 1
@@ -214,7 +218,8 @@ def print_tables(res):
           "held-out RMS x before → after [µm] | identify / diagnose [s] |")
     print("|---:|---|---:|---:|---|---|---|---|---|")
     for r in rows:
-        truth = "; ".join(f"{e['kind']} {e['magnitude']:.3g} {e['unit']}" for e in r["truth"]) or "clean"
+        truth = "; ".join(f"{e['kind']} {e['magnitude']:.3g} {e['unit']} ({r['visibility'][e['kind']]['noise_ratio']:.3g}× noise)"
+                          for e in r["truth"]) or "clean"
         if "error" in r:
             print(f"| {r['seed']} | {r['split']} | {r['n_axes']} | {r['Ts'] * 1e3:g} | {truth} | | error: {r['error']} | | |")
             continue
@@ -230,7 +235,7 @@ def print_tables(res):
     per, clean = summarise(rows)
     print("\n### Per effect kind\n")
     print("| kind | cases | named | suspected | named instead | parameter rel. error (median) | "
-          "held-out gain (median) | magnitudes (relative) |")
+          "held-out gain (median) | magnitudes (shift of the encoder channel / its noise) |")
     print("|---|---:|---:|---:|---|---|---|---|")
     for k, s in per.items():
         if not s["cases"]:
@@ -268,7 +273,8 @@ def main(argv=None):
     ap.add_argument("--scale", type=float, default=1.0, help="trace length factor (family.case(scale=...))")
     ap.add_argument("--jobs", type=int, default=2, help="worker processes of identification and diagnosis")
     ap.add_argument("--quick", action="store_true", help="3 cases, half-length traces, 8 generations")
-    ap.add_argument("--out", default="bench_family_diagnosis.json", help="file name in benchmarks/results")
+    ap.add_argument("--out", default=OUT_DEFAULT, help="file name in benchmarks/results (--quick: "
+                    "bench_family_diagnosis_quick.json)")
     ap.add_argument("--print-only", nargs="*", metavar="JSON", help="print the tables of earlier runs")
     args = ap.parse_args(argv)
     if args.print_only is not None:
@@ -278,6 +284,7 @@ def main(argv=None):
         print_tables({"cases": rows})
         return
     if args.quick:
+        args.out = "bench_family_diagnosis_quick.json" if args.out == OUT_DEFAULT else args.out
         args.cases = min(args.cases, 3)
         args.scale = 0.5 if args.scale == 1.0 else args.scale
         args.maxiter = args.maxiter or 8

@@ -9,7 +9,7 @@ and simulates training and validation traces; nothing is stored. The simulator
 See :mod:`family.cases` (drawing and effects), :mod:`family.params` (parameters and tuning),
 :mod:`family.plant` (integration) and :mod:`family.paths` (commanded paths).
 """
-from .cases import KINDS, SPLITS, Case, case, seeds, split_of
+from .cases import KINDS, SPLITS, Case, case, seeds, split_of, visibility
 from .params import AxisPlant, Effect, Machine
 
-__all__ = ["AxisPlant", "Case", "Effect", "KINDS", "Machine", "SPLITS", "case", "seeds", "split_of"]
+__all__ = ["AxisPlant", "Case", "Effect", "KINDS", "Machine", "SPLITS", "case", "seeds", "split_of", "visibility"]

@@ -319,7 +319,7 @@ def simulate(machine, cmd, rng, name, source, dist_band_hz=3.0):
     return Trace(t=t, channels=chans, roles=roles, source=source, meta=meta)
 
 
-def case(seed, without=(), scale=1.0, traces=True):
+def case(seed, without=(), scale=1.0, traces=True, validation=True):
     """Build the case of a seed (module docstring).
 
     Parameters
@@ -329,6 +329,7 @@ def case(seed, without=(), scale=1.0, traces=True):
     scale : float, scales the number of moves of every trace (1: the benchmark's length, ~8-15 s
         of training data; smaller for fast tests)
     traces : bool, simulate the traces (False: the draws alone, ``train`` and ``val`` empty)
+    validation : bool, simulate the validation traces too (False: ``val`` empty)
 
     Returns
     -------
@@ -384,5 +385,36 @@ def case(seed, without=(), scale=1.0, traces=True):
     src = f"family:{seed}"
     train = [simulate(m, train_cmd, np.random.default_rng(noise_seed[0]), "moves", f"{src}:train", band)]
     val = [simulate(m, c, np.random.default_rng(noise_seed[1 + k]), nm, f"{src}:val:{nm}", band)
-           for k, (nm, c) in enumerate(val_cmds)]
+           for k, (nm, c) in enumerate(val_cmds)] if validation else []
     return Case(seed=int(seed), split=split_of(seed), machine=m, effects=kept, train=train, val=val, limits=lim)
+
+
+def visibility(c, scale=1.0):
+    """How much each effect of a case shows in its first training trace: the same case rebuilt
+    without that effect (same plant, path and noise), and the difference of the recorded
+    channels of the first axis.
+
+    Parameters
+    ----------
+    c : Case
+    scale : the ``scale`` the case was built with
+
+    Returns
+    -------
+    dict kind -> {``act_rms_um``: RMS of the motor-encoder difference, um; ``tool_rms_um``: of the
+    tool-side channel (None without one); ``noise_ratio``: act_rms over the encoder noise (its
+    standard deviation, or the quantisation step's 1/sqrt(12) when larger)}
+    """
+    out = {}
+    tr = c.train[0]
+    ax = c.machine.axes[0]
+    floor = max(ax.noise_mm, ax.resolution_mm / math.sqrt(12.0))
+    for e in c.effects:
+        o = case(c.seed, without=(e.kind,), scale=scale, validation=False).train[0]
+        d = tr.act(c.axis) - o.act(c.axis)
+        tool = None
+        if tr.has(c.axis, "tool") and o.has(c.axis, "tool"):
+            tool = float(np.sqrt(np.mean((tr.get(c.axis, "tool") - o.get(c.axis, "tool")) ** 2))) * 1e3
+        rms = float(np.sqrt(np.mean(d ** 2)))
+        out[e.kind] = {"act_rms_um": rms * 1e3, "tool_rms_um": tool, "noise_ratio": rms / floor}
+    return out
