@@ -10,7 +10,8 @@ effects on axis x):
 3. against the recorded truth: per effect kind present, named or not and what was named instead
    (confusion); on clean cases, false alarms; the held-out RMS of the position residual before and
    after; the fitted parameter against the true one (period, v_s, dead time, frequency, lost
-   motion, channel); and the first round's statistic / threshold of every detector. How visible
+   motion, channel); the first round's statistic / threshold of every detector, and (in the JSON)
+   every candidate of every round with its held-out gain and outcome. How visible
    each effect is: the RMS shift of the motor-encoder channel of the first training trace it
    causes (the case rebuilt without it, ``family.visibility``), over the encoder noise.
 
@@ -51,6 +52,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from family import KINDS, case, seeds, visibility  # noqa: E402
 from fdid_fmi.diagnose import diagnose  # noqa: E402
 from fdid_fmi.diagnose.limits import NoteKind  # noqa: E402
+from fdid_fmi.diagnose.reporting import candidate_table  # noqa: E402
 from fdid_fmi.identify.choose_structure import identify_auto  # noqa: E402
 
 OUT = ROOT / "benchmarks" / "results"
@@ -159,6 +161,7 @@ def run_case(seed, args):
     out["val_before_um"] = {ch: v["rms_um"] for ch, v in d.before["val"].items()}
     out["val_after_um"] = {ch: v["rms_um"] for ch, v in d.after["val"].items()}
     out["first_round"] = first_round(d)
+    out["candidates"] = [{k: v for k, v in c.items() if k != "note"} for c in candidate_table(d.rounds)]
     kinds_named = [e["kind"] for e in named]
     out["params"] = {}
     for e in truth["effects"]:
