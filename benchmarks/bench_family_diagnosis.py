@@ -24,9 +24,9 @@ results after every case) and prints markdown tables. BLAS pinned to one thread.
         [--out NAME.json]
     .venv/bin/python benchmarks/bench_family_diagnosis.py --print-only bench_family_diagnosis.json
 
-``--quick``: 3 cases of the held-out split, traces at 0.5 of their length, identification with
-8 generations (``--identify-maxiter``) and refits with 8 (``--maxiter``): a smoke run, figures not
-comparable with full runs.
+``--quick``: 3 cases (unless ``--cases`` says otherwise), traces at 0.5 of their length,
+identification with 8 generations (``--identify-maxiter``) and refits with 8 (``--maxiter``): a
+smoke run, figures not comparable with full runs.
 """
 import os
 
@@ -54,6 +54,7 @@ from fdid_fmi.diagnose import diagnose  # noqa: E402
 from fdid_fmi.diagnose.limits import NoteKind  # noqa: E402
 from fdid_fmi.diagnose.reporting import candidate_table  # noqa: E402
 from fdid_fmi.identify.choose_structure import identify_auto  # noqa: E402
+from fdid_fmi.simulate import simulate  # noqa: E402
 
 OUT = ROOT / "benchmarks" / "results"
 OUT_DEFAULT = "bench_family_diagnosis.json"
@@ -111,6 +112,17 @@ def parameter_error(kind, truth, named, machine):
     return {"name": name, "true": t, "fitted": f, "rel_error": float(f) / float(t) - 1.0}
 
 
+def _free_run_um(model, trace, axis):
+    """Free-run RMS (um) of the predicted minus the measured tracking error, or None when the
+    simulator refuses the model on this trace."""
+    try:
+        e = simulate(model, trace).axes[axis]["error"] - trace.error(axis)
+    except Exception as exc:     # reported, not fatal
+        print(f"    simulate on {trace.meta.get('name')} failed: {_err(exc)}", flush=True)
+        return None
+    return float(np.sqrt(np.mean(e ** 2))) * 1e3
+
+
 def first_round(d):
     """Per candidate label: the largest statistic / threshold of the first round."""
     out = {}
@@ -162,6 +174,9 @@ def run_case(seed, args):
     out["val_after_um"] = {ch: v["rms_um"] for ch, v in d.after["val"].items()}
     out["first_round"] = first_round(d)
     out["candidates"] = [{k: v for k, v in c.items() if k != "note"} for c in candidate_table(d.rounds)]
+    # the second validation trace (contour or long strokes), never seen by the diagnosis
+    out["val2"] = {"name": c.val[1].meta["name"], "before_um": _free_run_um(model, c.val[1], ax),
+                   "after_um": _free_run_um(d.final, c.val[1], ax)}
     kinds_named = [e["kind"] for e in named]
     out["params"] = {}
     for e in truth["effects"]:
@@ -197,7 +212,7 @@ def summarise(rows):
             k = e["kind"]
             s = per[k]
             s["cases"] += 1
-            s["magnitudes"].append((e["magnitude"], r["visibility"][k]["noise_ratio"]))
+            s["magnitudes"].append((e["magnitude"], (r.get("visibility") or {}).get(k, {}).get("noise_ratio")))
             s["gains"].append(gain)
             if k in named:
                 s["named"] += 1
@@ -218,13 +233,15 @@ def print_tables(res):
     rows = res["cases"]
     print("\n### Family cases\n")
     print("| seed | split | axes | Ts [ms] | truth (magnitude) | structure | named (parameters) | "
-          "held-out RMS x before → after [µm] | identify / diagnose [s] |")
-    print("|---:|---|---:|---:|---|---|---|---|---|")
+          "held-out RMS x before → after [µm] | second validation trace [µm] | identify / diagnose [s] |")
+    print("|---:|---|---:|---:|---|---|---|---|---|---|")
     for r in rows:
-        truth = "; ".join(f"{e['kind']} {e['magnitude']:.3g} {e['unit']} ({r['visibility'][e['kind']]['noise_ratio']:.3g}× noise)"
+        vis = r.get("visibility") or {}
+        truth = "; ".join(f"{e['kind']} {e['magnitude']:.3g} {e['unit']}"
+                          + (f" ({vis[e['kind']]['noise_ratio']:.3g}× noise)" if e["kind"] in vis else "")
                           for e in r["truth"]) or "clean"
         if "error" in r:
-            print(f"| {r['seed']} | {r['split']} | {r['n_axes']} | {r['Ts'] * 1e3:g} | {truth} | | error: {r['error']} | | |")
+            print(f"| {r['seed']} | {r['split']} | {r['n_axes']} | {r['Ts'] * 1e3:g} | {truth} | | error: {r['error']} | | | |")
             continue
         named = "; ".join(e["kind"] + " (" + ", ".join(
             f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in e.items()
@@ -232,8 +249,10 @@ def print_tables(res):
         if r.get("suspected"):
             named += " (suspected: " + ", ".join(r["suspected"]) + ")"
         ch = r["axis"]
+        v2 = r.get("val2") or {}
+        v2s = (f"{v2['name']}: {_f(v2.get('before_um'))} → {_f(v2.get('after_um'))}" if v2 else "—")
         print(f"| {r['seed']} | {r['split']} | {r['n_axes']} | {r['Ts'] * 1e3:g} | {truth} | {r.get('structure')} | "
-              f"{named} | {r['val_before_um'][ch]:.3g} → {r['val_after_um'][ch]:.3g} | "
+              f"{named} | {r['val_before_um'][ch]:.3g} → {r['val_after_um'][ch]:.3g} | {v2s} | "
               f"{r['identify_s']:.0f} / {r['diagnose_s']:.0f} |")
     per, clean = summarise(rows)
     print("\n### Per effect kind\n")
@@ -247,7 +266,7 @@ def print_tables(res):
         inst = ", ".join(f"{n} ×{c}" for n, c in s["instead"].items()) or "—"
         pe = f"{np.median(np.abs(s['rel_errors'])):.3f} (n={len(s['rel_errors'])})" if s["rel_errors"] else "—"
         g = [x for x in s["gains"] if x is not None]
-        mags = ", ".join(f"{m:.3g} ({rel:.3g})" for m, rel in s["magnitudes"])
+        mags = ", ".join(f"{m:.3g} ({_f(rel)})" for m, rel in s["magnitudes"])
         print(f"| {k} | {s['cases']} | {s['named']} | {s['suspected']} | {inst} | {pe} | "
               f"{_f(float(np.median(g)) if g else None, '{:+.1%}')} | {mags} |")
     named = ", ".join(f"{n} ×{c}" for n, c in clean["named"].items()) or "—"
@@ -266,7 +285,7 @@ def print_tables(res):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--cases", type=int, default=8, help="number of cases")
+    ap.add_argument("--cases", type=int, default=None, help="number of cases (default 8; --quick: 3)")
     ap.add_argument("--split", choices=("calibration", "held-out", "all"), default="held-out")
     ap.add_argument("--start", type=int, default=0, help="first seed considered")
     ap.add_argument("--seeds", default="", help="comma-separated seeds (overrides --cases/--split/--start)")
@@ -275,7 +294,8 @@ def main(argv=None):
                     help="DE iterations of the identification (default: identify_auto's)")
     ap.add_argument("--scale", type=float, default=1.0, help="trace length factor (family.case(scale=...))")
     ap.add_argument("--jobs", type=int, default=2, help="worker processes of identification and diagnosis")
-    ap.add_argument("--quick", action="store_true", help="3 cases, half-length traces, 8 generations")
+    ap.add_argument("--quick", action="store_true", help="3 cases, half-length traces, 8 generations "
+                    "(identification and refits)")
     ap.add_argument("--out", default=OUT_DEFAULT, help="file name in benchmarks/results (--quick: "
                     "bench_family_diagnosis_quick.json)")
     ap.add_argument("--print-only", nargs="*", metavar="JSON", help="print the tables of earlier runs")
@@ -288,11 +308,12 @@ def main(argv=None):
         return
     if args.quick:
         args.out = "bench_family_diagnosis_quick.json" if args.out == OUT_DEFAULT else args.out
-        args.cases = min(args.cases, 3)
+        args.cases = args.cases or 3
         args.scale = 0.5 if args.scale == 1.0 else args.scale
         args.maxiter = args.maxiter or 8
         args.identify_maxiter = args.identify_maxiter or 8
     args.maxiter = args.maxiter or 25
+    args.cases = args.cases or 8
     todo = [int(s) for s in args.seeds.split(",") if s] or seeds(args.split, args.cases, args.start)
     OUT.mkdir(parents=True, exist_ok=True)
     path = OUT / args.out
