@@ -225,6 +225,23 @@ def summarise(rows):
     return per, clean
 
 
+def missed(r):
+    """Per true effect not named: what its detector's candidates came to (outcome, statistic /
+    threshold, best held-out gain), from the candidate table of every round."""
+    named = {e["kind"] for e in r.get("named", [])}
+    out = {}
+    for e in r["truth"]:
+        k = e["kind"]
+        if k in named:
+            continue
+        cs = [c for c in r.get("candidates", []) if c["kind"] == k]
+        out[k] = [f"{c['label']} round {c['round']}: {c['outcome']} ({c['statistic'] / c['threshold']:.2f}× threshold"
+                  + (f", held-out {c['best_gain_val']:+.1%}" if c.get("best_gain_val") is not None else "") + ")"
+                  for c in cs if c["threshold"] and np.isfinite(c["statistic"]) and np.isfinite(c["threshold"])] \
+            or ["no candidate of this kind"]
+    return out
+
+
 def _f(x, fmt="{:.3g}"):
     return "—" if x is None else fmt.format(x)
 
@@ -271,6 +288,13 @@ def print_tables(res):
               f"{_f(float(np.median(g)) if g else None, '{:+.1%}')} | {mags} |")
     named = ", ".join(f"{n} ×{c}" for n, c in clean["named"].items()) or "—"
     print(f"\nClean cases: {clean['cases']}, false alarms {clean['false_alarms']} (named: {named})")
+    lines = [(r["seed"], k, "; ".join(v)) for r in rows if "error" not in r for k, v in missed(r).items()]
+    if lines:
+        print("\n### Effects not named: what their candidates came to\n")
+        print("| seed | effect | candidates (outcome, statistic / threshold, best held-out gain) |")
+        print("|---:|---|---|")
+        for seed, k, text in lines:
+            print(f"| {seed} | {k} | {text} |")
     print("\n### First round: statistic / threshold per detector (≥ 1 passes the gate)\n")
     labels = sorted({lab for r in rows if "first_round" in r for lab in r["first_round"]})
     print("| seed | truth | " + " | ".join(labels) + " |")
