@@ -9,7 +9,9 @@ its effects differs from it in those effects alone, with the same noise and path
    (30 %), stroke 150-800 mm;
 2. each axis (:func:`family.params.draw_axis`);
 3. the parameters of every effect kind (below), then how many effects the case has (none 30 %,
-   one 45 %, two 25 %) and which (distinct kinds; ``coupling`` only on two axes);
+   one 45 %, two 25 %) and which (distinct kinds; ``coupling`` only on two axes, where it is
+   three times as likely as each other kind, so that over the family every kind is about as
+   frequent);
 4. the paths and the noise seeds.
 
 Effects act on the first axis (``x``; the source of a coupling is ``y``). Magnitudes are drawn
@@ -55,6 +57,7 @@ KINDS = ("stribeck", "backlash", "periodic_position", "delay", "mode", "coupling
 UNITS = {"stribeck": "N", "backlash": "mm", "periodic_position": "N", "delay": "samples", "mode": "kg",
          "coupling": "kg", "extra_input": "N"}
 SPLITS = ("calibration", "held-out")
+COUPLING_WEIGHT = 3.0       # odds of coupling against any other kind on a two-axis plant
 
 
 def split_of(seed):
@@ -355,8 +358,10 @@ def case(seed, without=(), scale=1.0, traces=True, validation=True):
     u = rng.uniform()
     count = 0 if u < 0.3 else (1 if u < 0.75 else 2)
     pool = [k for k in KINDS if k != "coupling" or n_axes == 2]
-    order = rng.permutation(len(pool))
-    chosen = [pool[i] for i in order[:count]]
+    # coupling exists on two-axis plants alone: weighted up there so that every kind is about
+    # as frequent over the family
+    w = np.array([COUPLING_WEIGHT if k == "coupling" else 1.0 for k in pool])
+    chosen = [pool[i] for i in rng.choice(len(pool), size=count, replace=False, p=w / w.sum())]
     effects = [Effect(kind=k, magnitude=float(drawn[k][0]), unit=UNITS[k], axis="x", params=dict(drawn[k][2]),
                       relative=float(drawn[k][1])) for k in KINDS if k in chosen]
     band = drawn["extra_input"][2]["band_hz"]
