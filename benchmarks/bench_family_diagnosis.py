@@ -235,10 +235,13 @@ def missed(r):
         if k in named:
             continue
         cs = [c for c in r.get("candidates", []) if c["kind"] == k]
-        out[k] = [f"{c['label']} round {c['round']}: {c['outcome']} ({c['statistic'] / c['threshold']:.2f}× threshold"
-                  + (f", held-out {c['best_gain_val']:+.1%}" if c.get("best_gain_val") is not None else "") + ")"
-                  for c in cs if c["threshold"] and np.isfinite(c["statistic"]) and np.isfinite(c["threshold"])] \
-            or ["no candidate of this kind"]
+        out[k] = [f"{c['label']} round {c['round']}: " + (
+            f"{c['outcome']} ({c['statistic'] / c['threshold']:.2f}× threshold"
+            + (f", held-out {c['best_gain_val']:+.1%}" if c.get("best_gain_val") is not None else "") + ")"
+            if c["threshold"] and np.isfinite(c["statistic"]) and np.isfinite(c["threshold"])
+            else f"gate closed (statistic {c['statistic']:.3g}, threshold {c['threshold']:.3g}"
+                 + (f": {c['not_checked']}" if c.get("not_checked") else "") + ")")
+            for c in cs] or ["no candidate of this kind"]
     return out
 
 

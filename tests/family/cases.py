@@ -172,7 +172,7 @@ def _apply(machine, effects):
 
 def _moves(rng, n_axes, n_moves, lim, Ts, center):
     """Point-to-point moves: short (1-20 mm) and long (20-90 % of the stroke) ones, on one axis
-    or on both together, within the stroke around ``center``."""
+    or on both together along a random direction, within the stroke around ``center``."""
     half = 0.5 * lim["stroke"]
     pos = np.array(center, float)
     targets, feeds, dwells = [], [], []
@@ -183,13 +183,17 @@ def _moves(rng, n_axes, n_moves, lim, Ts, center):
         L = (min(rng.uniform(0.2, 0.9) * lim["stroke"], f * rng.uniform(0.4, 2.0)) if long_
              else loguniform(rng, 1.0, 20.0))
         which = (int(rng.integers(0, 3)) if len(targets) else 2) if n_axes == 2 else 0
+        # one axis, or both along a random direction (not the same on both: the second axis's
+        # command would then follow the first's)
+        th = rng.uniform(0.0, 2 * math.pi)
+        comp = [math.cos(th), math.sin(th)] if which == 2 else [float(which == a) for a in range(n_axes)]
         d = np.zeros(n_axes)
         for a in range(n_axes):
-            if which == 2 or which == a:
-                sgn = 1.0 if rng.uniform() < 0.5 else -1.0
-                if abs(pos[a] + sgn * L - center[a]) > half:
-                    sgn = -sgn
-                d[a] = sgn * L
+            if comp[a]:
+                step = L * comp[a]
+                if abs(pos[a] + step - center[a]) > half:
+                    step = -step
+                d[a] = step
         tgt = pos + d
         targets.append(tgt)
         feeds.append(f)
