@@ -206,7 +206,7 @@ def test_backlash_without_a_tool_encoder_records_no_tool_channel():
 def test_periodic_force_follows_the_motor_position_with_its_period():
     """Where the force's frequency v / period is well inside the velocity loop's bandwidth, the
     loop cancels it: the motor-force difference to the case without it is
-    -A sin(2 pi x1 / period + phase)."""
+    -A sin(2 pi x1 / period + phase), by amplitude and for the bulk of the samples."""
     c, o = _pair("periodic_position", lambda c: c.effect("periodic_position").magnitude > 2.0)
     e = c.effect("periodic_position")
     tr, tr0 = c.train[0], o.train[0]
@@ -219,8 +219,9 @@ def test_periodic_force_follows_the_motor_position_with_its_period():
     X = np.column_stack([np.sin(ph), np.cos(ph), np.ones_like(ph)])
     th, *_ = np.linalg.lstsq(X, dF, rcond=None)
     assert th[0] == pytest.approx(-e.magnitude, rel=0.4)
-    r2 = 1 - np.sum((dF - X @ th) ** 2) / np.sum((dF - dF.mean()) ** 2)
-    assert r2 > 0.5             # most of the force difference is that sinusoid of the motor position
+    # the rest is small but for the short spikes where the two runs' friction switches at
+    # slightly different instants (the paths differ by the force's effect)
+    assert np.median(np.abs(dF - X @ th)) < 0.2 * e.magnitude
 
 
 def test_stribeck_raises_the_breakaway_level():
