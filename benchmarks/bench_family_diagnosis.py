@@ -16,7 +16,8 @@ effects on axis x):
    causes (the case rebuilt without it, ``family.visibility``), over the encoder noise.
 
 Writes benchmarks/results/bench_family_diagnosis.json (``--quick``: ..._quick.json; partial
-results after every case) and prints markdown tables. BLAS pinned to one thread.
+results after every case) and its markdown tables beside it (.md), and prints them. BLAS pinned to
+one thread.
 
     .venv/bin/python benchmarks/bench_family_diagnosis.py --quick
     .venv/bin/python benchmarks/bench_family_diagnosis.py [--cases N] [--split calibration|held-out|all]
@@ -277,7 +278,8 @@ def print_tables(res):
     per, clean = summarise(rows)
     print("\n### Per effect kind\n")
     print("| kind | cases | named | suspected | named instead | parameter rel. error (median) | "
-          "held-out gain (median) | magnitudes (shift of the encoder channel / its noise) |")
+          "held-out gain of these cases, every kept effect (median) | magnitudes (shift of the encoder "
+          "channel / its noise) |")
     print("|---|---:|---:|---:|---|---|---|---|")
     for k, s in per.items():
         if not s["cases"]:
@@ -308,6 +310,16 @@ def print_tables(res):
         fr = r["first_round"]
         print(f"| {r['seed']} | {', '.join(r['kinds']) or 'clean'} | "
               + " | ".join(_f((fr.get(lab) or {}).get("ratio"), "{:.2f}") for lab in labels) + " |")
+
+
+def tables_text(res):
+    """The markdown tables of :func:`print_tables` as one string."""
+    import contextlib
+    import io
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        print_tables(res)
+    return buf.getvalue()
 
 
 def main(argv=None):
@@ -359,8 +371,11 @@ def main(argv=None):
     res["summary"] = {"per_kind": {k: {**v, "instead": dict(v["instead"])} for k, v in per.items()},
                       "clean": {**clean, "named": dict(clean["named"])}}
     save()
-    print_tables(res)
-    print(f"\nwall time {res['wall_s']:.0f} s; JSON: {path}")
+    text = tables_text(res)
+    print(text)
+    md = path.with_suffix(".md")
+    md.write_text(text + "\n")
+    print(f"\nwall time {res['wall_s']:.0f} s; JSON: {path}; tables: {md}")
 
 
 if __name__ == "__main__":
