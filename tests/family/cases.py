@@ -333,7 +333,7 @@ def case(seed, without=(), scale=1.0, traces=True, validation=True):
     ----------
     seed : int
     without : kinds of effects to leave out (the same case otherwise: same plant, paths, noise)
-    scale : float, scales the number of moves of every trace (1: the benchmark's length, ~8-15 s
+    scale : float, scales the number of moves of every trace (1: the benchmark's length, about 5-15 s
         of training data; smaller for fast tests)
     traces : bool, simulate the traces (False: the draws alone, ``train`` and ``val`` empty)
     validation : bool, simulate the validation traces too (False: ``val`` empty)
