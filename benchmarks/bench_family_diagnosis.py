@@ -269,6 +269,8 @@ def print_tables(res):
             if k not in ("kind", "axis", "input", "output")) + ")" for e in r["named"]) or "none"
         if r.get("suspected"):
             named += " (suspected: " + ", ".join(r["suspected"]) + ")"
+        if r.get("notes"):      # e.g. carried_lost_motion: a play in the chosen structure
+            named += " (notes: " + ", ".join(sorted(set(r["notes"]))) + ")"
         ch = r["axis"]
         v2 = r.get("val2") or {}
         v2s = (f"{v2['name']}: {_f(v2.get('before_um'))} → {_f(v2.get('after_um'))}" if v2 else "—")
