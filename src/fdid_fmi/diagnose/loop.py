@@ -112,10 +112,14 @@ class Diagnosis:
         return sorted({c["kind"] for r in self.rounds for c in r["candidates"] if c["detected"]})
 
     def to_json(self):
-        """The JSON summary (``effects_added``, ``before`` / ``after`` per trace and axis)."""
+        """The JSON summary (``effects_added``, ``candidates``: every candidate of every round with
+        its statistic, threshold, held-out gain and outcome (:func:`.reporting.candidate_table`),
+        ``before`` / ``after`` per trace and axis)."""
         from ..report import _jsonable
+        from .reporting import candidate_table
         out = {
             "effects_added": self.effects_added,
+            "candidates": candidate_table(self.rounds),
             "before": _per_axis(self.before), "after": _per_axis(self.after),
             "steps": [{"effect": s.effect, "before": _per_axis(s.before), "after": _per_axis(s.after),
                        "candidates": s.candidates} for s in self.steps],

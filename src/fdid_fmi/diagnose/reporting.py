@@ -3,7 +3,8 @@ before/after numbers reproduced through exported FMUs.
 
 Per kept effect: its name and fitted parameters, the residual before and after on the training
 and held-out traces (figures), the evidence figure of its detector, and the RMS/MAX table. Then
-every candidate of every round (statistic, threshold, held-out gain, kept or why not), the
+every candidate of every round (statistic, threshold, held-out gain, kept or why not:
+:func:`candidate_table`, also the JSON summary's ``candidates``), the
 whiteness / cross-correlation tests of what is left, and the FMU table when FMUs were checked.
 """
 from __future__ import annotations
@@ -230,21 +231,20 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
             if f2 is not None:
                 rep.add_figure(f"step{i}_evidence", f2, d2, caption=f"evidence of the {e['kind']} detector")
     rep.add_heading("Candidates, round by round")
+    table = candidate_table(diag.rounds)
     for rnd in diag.rounds:
         rows = []
-        for c in rnd["candidates"]:
-            label = c.get("label", c["kind"])
-            trial = next((t for t in rnd["trials"] if (t.get("label", t["kind"]), t.get("axis"), t["params"])
-                          == (label, c["axis"], c["params"])), {})
-            gv = trial.get("gain_val", {})
-            rows.append({"round": rnd["round"], "kind": label, "axis": c["axis"],
+        for c in table:
+            if (c["round"], c.get("block")) != (rnd["round"], rnd.get("axis")):
+                continue
+            gv = c["gain_val"] or {}
+            rows.append({"round": c["round"], "kind": c["label"], "axis": c["axis"],
                          "statistic": c["statistic"], "threshold": c["threshold"],
-                         "tried": ("not checked" if c.get("not_checked") else
-                                   "yes" if c["detected"] else "no"),
+                         "tried": ("not checked" if c["not_checked"] else "yes" if c["detected"] else "no"),
                          "held-out gain": ", ".join(f"{k}: {100 * v:+.1f} %" for k, v in gv.items()) or "–",
-                         "kept": "yes" if trial.get("kept") else ("implausible: " + trial["implausible"]
-                                                                  if trial.get("implausible") else "no"),
-                         "note": c["note"] + (f" (not checked: {c['not_checked']})" if c.get("not_checked") else "")})
+                         "kept": "yes" if c["kept"] else ("implausible: " + c["implausible"]
+                                                          if c["implausible"] else "no"),
+                         "note": c["note"] + (f" (not checked: {c['not_checked']})" if c["not_checked"] else "")})
         rep.add_table(f"{rnd['axis']}_round{rnd['round']}" if "axis" in rnd else f"round{rnd['round']}",
                       rows, caption=f"axis {rnd['axis']}" if "axis" in rnd else "")
     rep.add_heading("What is left: whiteness and input cross-correlation")
@@ -264,6 +264,64 @@ def diagnosis_report(diag, title=None, fmu=None, model_source=""):
     from ..report import add_model_section
     add_model_section(rep, diag.final, heading="The model after diagnosis")
     return rep
+
+
+def candidate_table(rounds):
+    """Every candidate of every round, with its evidence and what its refit did: one flat list
+    (the JSON summary's ``candidates`` and the report's per-round tables).
+
+    Parameters
+    ----------
+    rounds : ``Diagnosis.rounds`` (each ``{"round", "candidates", "trials"}``, and ``"axis"``
+        for the rounds of a combined model's block)
+
+    Returns
+    -------
+    list of dict, per candidate: ``round``, ``block`` (the block's axis of a combined model, else
+    None), ``kind``, ``label`` (kind and statistic), ``axis``, ``statistic``, ``threshold``,
+    ``detected`` (statistic >= threshold), ``not_checked`` (why the detector could not test, or
+    ''), ``refitted`` (a trial refit was made), ``gain_train``, ``gain_val`` (fractions of RMS
+    reduction per scored channel against the trial's reference, or None), ``best_gain_val``
+    (the largest of ``gain_val``, or None), ``criterion_met``, ``kept``, ``implausible`` (reason,
+    or ''), ``error`` (of a failed refit, or ''), ``outcome`` (one phrase: ``below threshold``,
+    ``not checked``, ``not refitted``, ``refit failed``, ``implausible``, ``held-out gain too
+    small``, ``another candidate kept``, ``kept``), ``params``, ``note``.
+    """
+    out = []
+    for rnd in rounds:
+        kept_any = any(t.get("kept") for t in rnd.get("trials", []))
+        for c in rnd["candidates"]:
+            label = c.get("label", c["kind"])
+            trial = next((t for t in rnd.get("trials", []) if (t.get("label", t["kind"]), t.get("axis"), t["params"])
+                          == (label, c["axis"], c["params"])), None)
+            t = trial or {}
+            gv = t.get("gain_val")
+            if c.get("not_checked"):
+                outcome = "not checked"
+            elif not c["detected"]:
+                outcome = "below threshold"
+            elif trial is None:
+                outcome = "not refitted"
+            elif t.get("error"):
+                outcome = "refit failed"
+            elif t.get("kept"):
+                outcome = "kept"
+            elif t.get("implausible"):
+                outcome = "implausible"
+            elif t.get("criterion_met") and kept_any:
+                outcome = "another candidate kept"
+            else:
+                outcome = "held-out gain too small"
+            out.append({"round": rnd["round"], "block": rnd.get("axis"), "kind": c["kind"], "label": label,
+                        "axis": c["axis"], "statistic": c["statistic"], "threshold": c["threshold"],
+                        "detected": bool(c["detected"]), "not_checked": c.get("not_checked", ""),
+                        "refitted": trial is not None and not t.get("error"),
+                        "gain_train": t.get("gain_train"), "gain_val": gv,
+                        "best_gain_val": max(gv.values()) if gv else None,
+                        "criterion_met": bool(t.get("criterion_met", False)), "kept": bool(t.get("kept", False)),
+                        "implausible": t.get("implausible") or "", "error": t.get("error", ""),
+                        "outcome": outcome, "params": c["params"], "note": c.get("note", "")})
+    return out
 
 
 def per_axis_rows(diag):
