@@ -2,7 +2,7 @@
 
 A drive whose closed loop has four poles, identified with the three-pole rigid structure: the
 diagnosis must say the order is too low. (Where it must not: the clean virtual-drive runs of
-``test_diagnose_virtual.py`` require their notes to be ``not_observable`` alone.) The search's
+``benchmarks/checks/diagnose_virtual.py`` require their notes to be ``not_observable`` alone.) The search's
 start point, which the check relies on, must leave every search method no worse than where it
 started.
 """
