@@ -1,10 +1,10 @@
 """Diagnosis on the second plant (``tests/plant2``): the rules of the notes on what the data cannot
 show or only suggest (``diagnose.limits``), the lost motion a tool-side model carries, the locked
-refit of a backlash, and the dead-time statistic on a stored default model.
+refit of a backlash, and the dead-time statistic's edge rule.
 
 The diagnosis runs on this plant (backlash with and without the tool-side channel, the
-``suspected`` note, Stribeck in the play law, the mode, the dead time on the default model, the
-refits judged without a held-out trace) are checks of ``benchmarks/bench_end_to_end.py``
+``suspected`` note, Stribeck in the play law, the mode, the dead time on the stored default
+models, the refits judged without a held-out trace) are checks of ``benchmarks/bench_end_to_end.py``
 (``checks/diagnose_plant2.py``).
 """
 import warnings
@@ -118,34 +118,3 @@ def test_a_best_shift_on_the_edge_of_the_range_is_no_dead_time():
     assert shift_statistic([1.3, 1.1, 1.0]) == (2, 1.0, True)
     assert shift_statistic([1.0, 1.1, 1.2]) == (0, 1.0, False)        # no shift helps
     assert shift_statistic([float("inf"), 1.0, 1.1]) == (1, 1.0, False)
-
-
-DATA = __import__("pathlib").Path(__file__).parent / "data"
-
-
-def _default_model(name):
-    """The model ``fdid identify`` writes with its defaults on a plant2 scenario's training
-    trace (``identify_auto``, seed 0; stored in tests/data because its structure choice takes
-    100-150 CPU-s), with the scenario's training and reversals traces."""
-    from fdid_fmi.model import load_model
-    train, vals, truth = p2.scenario(name)
-    return load_model(DATA / f"plant2_{name}_default_model.json"), train[0], next(
-        v for v in vals if v.meta["name"] == "reversals")
-
-
-def test_on_a_clean_default_model_no_shift_wins_the_parsimony_margin():
-    """plant2 ``clean_rigid`` on its default path's model (rigid cubic): no command shift lowers
-    the refined refits' free run below the given model's (measured: statistic 1.0;
-    1.0 on seeds 0-2, the virtual drive's clean runs 1.000-1.006)."""
-    from fdid_fmi.diagnose import delay
-    from fdid_fmi.diagnose.base import Context
-    m, tr, _ = _default_model("clean_rigid")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        ctx = Context(model=m, recipe=ag.recipe_from_model(m), train=ag.model_velocity_traces(m, [tr]),
-                      res=[residuals(m, tr)], settings={"maxiter": 25, "max_delay": 4})
-        early, free = delay.detect(ctx)
-    assert not early.detected and not free.detected
-    R = free.evidence["refined_free_run_rms_um_by_shift"]
-    assert np.isfinite(R).all() and not free.not_checked     # every shift refitted: not passed vacuously
-    assert min(R[1:]) > R[0] / delay.FREE_RUN_RATIO      # measured: 0.220 um, every shift 0.250-0.263

@@ -39,7 +39,7 @@ def two_axis(d):
     """
     tr, va = scenario("coupling", n_moves=6)
     _write_csv(tr, d / "train.csv")
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):
         warnings.simplefilter("ignore")
         assert main(["identify", str(d / "train.csv"), "-o", str(d / "model.json"), "--maxiter", "5"]) == 0
     return tr, va, d / "train.csv", d / "model.json"
