@@ -79,7 +79,7 @@ def _one(cfg, ax):
 
 
 def virtual_data(cfg, ax, n_moves=20):
-    """The traces of tests/test_pole_search_virtual.py: 20 linear moves to train; a diamond,
+    """The traces of benchmarks/checks/pole_search_virtual.py: 20 linear moves to train; a diamond,
     a circle and another move set to validate."""
     Ts = cfg.Ts
     one = _one(cfg, ax)

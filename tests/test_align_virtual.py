@@ -5,6 +5,8 @@ Two runs of the ``flexible_y`` machine, written as three acquisition systems wou
 the angles are found on a run where both axes move) and an identification run moving Y only.
 Truth: accelerometer at 5 kHz, rotated (2.5, -1.2, 0.8) deg, biased, started 1.2-2.6 s before the
 controller, clock 60 / -75 ppm fast; KGM at 1 kHz, plate turned 0.35 deg, origin (12.345, -7.89) mm.
+The drive-train mode identified from the aligned acceleration, and its diagnosis residual, are
+checks of ``benchmarks/bench_end_to_end.py`` (``checks/align_virtual.py``).
 """
 import dataclasses
 
@@ -13,7 +15,6 @@ import pytest
 from scipy.integrate import cumulative_trapezoid
 
 from fdid_fmi.align import align, read_accelerometer, read_grid_encoder
-from fdid_fmi.identify import Bounds, identify_mimo, mimo_structure
 from fdid_fmi.io import read_trace
 from fdid_fmi.virtual import MachineConfig, presets, simulate_machine
 from fdid_fmi.virtual import trajectories as tj
@@ -146,44 +147,3 @@ def test_integrated_position_drift_within_stated_bound(yrun):
         assert err < bound, (mv, err, bound)
         worst = max(worst, err / bound)
     assert worst > 0.05  # the bound is not vacuous
-
-
-@pytest.fixture(scope="module")
-def modes(yrun):
-    sim, path, run, res, _ = yrun
-    nyq = 0.5 / TS
-    bounds = Bounds(real_hz=[(0.02, nyq)], omega_hz=[(0.02, nyq), (20.0, 40.0)],
-                    zeta=[(0.01, 4.0), (0.001, 0.5)])
-    st = mimo_structure(("y",), ("acceleration",), 1, 2, integrators={"acceleration": 2},
-                        dc_gain={"acceleration": (2, 1.0)})
-    out = {}
-    for name, tr in (("aligned", res.trace), ("perfect", sim)):
-        m = identify_mimo(tr, st, bounds=bounds, seed=0, maxiter=40)
-        out[name] = [p for p in m.identification["complex_hz_zeta"] if 20 <= p[0] <= 40]
-        out[name + "_model"] = m
-    return out, sim.meta["truth"]["linear"]["continuous"]["modes"]["y"]
-
-
-def test_mode_from_aligned_acceleration(modes):
-    found, truth = modes
-    assert len(found["aligned"]) == 1 and len(found["perfect"]) == 1
-    (fa, za), (fp, zp) = found["aligned"][0], found["perfect"][0]
-    assert fa == pytest.approx(truth["hz"], rel=0.01)       # measured 0.01 %
-    assert fa == pytest.approx(fp, rel=0.002)                # as from perfectly aligned data
-    assert za == pytest.approx(zp, rel=0.1)
-
-
-def test_aligned_trace_flows_into_diagnosis(yrun, modes):
-    """The diagnosis residual of the model fitted on the aligned acceleration, scored on the
-    aligned grid-encoder (tool) channel: as small as that of the model fitted on perfectly aligned
-    data scored on the true tool position, and the same as against the true tool position."""
-    from fdid_fmi.diagnose.residuals import residuals
-    sim, _, run, res, _ = yrun
-    rms = lambda x: float(np.sqrt(np.mean(x ** 2)))  # noqa: E731
-    r = residuals(modes[0]["aligned_model"], res.trace).axes["y"]
-    rp = residuals(modes[0]["perfect_model"], sim).axes["y"]
-    e_tool = res.trace.cmd("y") - res.trace.get("y", "tool")
-    assert rms(r.tool_residual) < 0.1 * rms(e_tool)                 # measured 4.5 %
-    assert rms(r.tool_residual) < 1.1 * rms(rp.tool_residual)        # measured 1.03 x (4.4 %)
-    truth = run["motion"].pos("y", res.trace.t) - r.tool_predicted
-    assert abs(rms(r.tool_residual) - rms(truth)) < 0.05 * rms(truth)

@@ -1,19 +1,16 @@
-"""Automatic structure choice: the parsimony rule, the record, the CLI's pinning
-flags, and one identification on the virtual drive with feed-forward, where the thesis's rigid
-structure is not enough (the current loop shows in the tracking error)."""
+"""Automatic structure choice: the parsimony rule, the record, the CLI's pinning flags, the
+refit of the kept structure in its other forms. The whole choice on the virtual drive with
+feed-forward, where the thesis's rigid structure is not enough (the current loop shows in the
+tracking error), is a check of ``benchmarks/bench_end_to_end.py`` (``checks/identify_default.py``)."""
 import json
 
-import numpy as np
 import pytest
 
 from fdid_fmi.cli import main
-from fdid_fmi.cli.identify import summary
-from fdid_fmi.pipeline.identify import structure_is_auto
+from fdid_fmi.cli.identify import structure_is_auto
 from fdid_fmi.errors import InputError
-from fdid_fmi.identify import StructureChoice, identify_auto, identify_full_ls, identify_quasi_static
+from fdid_fmi.identify import StructureChoice
 from fdid_fmi.identify.choose_structure import CandidateScore, choose
-from fdid_fmi.metrics import rms
-from fdid_fmi.simulate import simulate
 from fdid_fmi.virtual import MachineConfig, presets, simulate_machine
 from fdid_fmi.virtual import trajectories as tj
 
@@ -63,35 +60,6 @@ def test_auto_with_a_pinning_flag_is_one_clear_line(capsys, tmp_path):
     assert len(err) == 1 and "--structure" in err[0] and "--n-complex" in err[0]
 
 
-def test_feedforward_axis_gets_the_current_loop_pole():
-    """With feed-forward the rigid structure leaves the current loop in the error: the data choose
-    one more real pole and a look-ahead same-sample prediction (feed-forward looks one sample
-    ahead). Validated on a circle and a diamond against Full LS and quasi-static. The default
-    (vp) search keeps r2c2 here: its r2c1 free-runs 0.319 um against r2c2's 0.270 um, beyond
-    the parsimony margin (``method="de"`` keeps r2c1)."""
-    cfg = presets.with_feedforward()
-    one = MachineConfig(axes=[cfg.axis("x")], Ts=cfg.Ts)
-    train = simulate_machine(one, tj.linear_moves(n_moves=8, axes=("x",), Ts=cfg.Ts, seed=1), seed=1)
-    m = identify_auto(train, "x", seed=0, workers=2)
-    ch = StructureChoice.from_dict(m.identification["structure_choice"])
-    assert ch.chosen == "r2c2" and ch.same_sample in ("quadratic", "cubic")     # measured: quadratic
-    assert len(ch.candidates) >= 9 and sum(c.chosen for c in ch.candidates) == 1
-    # the kept structure's rounding sensitivity is measured: 0.038 of its RMS (measured)
-    kept = next(c for c in ch.candidates if c.chosen)
-    assert kept.sensitivity_mm is not None and kept.determined
-    assert m.method == "pole-search" and m.n_states > 0
-    fl, qs = identify_full_ls(train, "x"), identify_quasi_static(train, ["x"])
-    for name, v in {"circle": simulate_machine(cfg, tj.circle(Ts=cfg.Ts), seed=3),
-                    "diamond": simulate_machine(cfg, tj.diamond(Ts=cfg.Ts), seed=2)}.items():
-        d = {k: rms(simulate(mod, v).axes["x"]["error"] - v.error("x")) for k, mod in
-             (("auto", m), ("fl", fl), ("qs", qs))}
-        # measured: 0.57 / 0.62 um against Full LS / quasi-static 2.2-2.6 um
-        assert d["auto"] <= 0.6 * min(d["fl"], d["qs"]), (name, d)
-    lines = summary(m)
-    assert any(line.startswith("structure of axis x: r2c2") for line in lines)
-    assert np.isfinite(ch.wall_s)
-
-
 def test_identification_record_round_trip():
     """The typed record reads back exactly what the pole search wrote (JSON included), and the
     (output, input) pairs come back as tuples."""
@@ -109,34 +77,6 @@ def test_identification_record_round_trip():
     assert rec.structure.mask[("x_error", "x_cmd")] == (0, 1, 2)
     with pytest.raises(InputError, match="combined per-axis"):
         PoleSearchRecord.from_dict({"blocks": [m.identification]})
-
-
-def test_the_kept_structure_is_refitted_in_its_other_forms():
-    """Step 5: the form is chosen on r2c1 and need not be the kept structure's. The rigid body
-    of the bundled two-axis example (no feed-forward) differs by far between forms; fitted in
-    its worst form, the refit in the other forms takes the best one (the same fit, the seed is
-    fixed), and from the best form nothing is taken (the margin)."""
-    from pathlib import Path
-    from fdid_fmi.identify import choose_structure as cs
-    from fdid_fmi.identify.ranges import training_ranges
-    from fdid_fmi.identify.regressors import CHOSEN_FROM
-    from fdid_fmi.io import read_trace
-    tr = read_trace(Path(__file__).resolve().parents[1] / "examples" / "virtual_xy_moves.csv")
-    ranges = training_ranges(tr.select([(0.0, 6.0)]), ["x"])
-    opts = cs.fit_options(ranges, "x", None, 0, None, "de", "backward", 1)
-    fits = {f: cs.fit_candidate((cs.candidate("rigid"), f, ranges, "x", opts)) for f in CHOSEN_FROM}
-    score = {f: fits[f][0].free_run_rms_mm for f in CHOSEN_FROM}
-    worst, best = max(score, key=score.get), min(score, key=score.get)
-    assert score[best] < (1 - cs.PARSIMONY) * score[worst], score      # the case this test needs
-    taken, all_fits = cs.other_forms(fits[worst][0], ranges, "x", opts)
-    assert len(all_fits) == 2 and taken[0].same_sample == best
-    assert taken[0].free_run_rms_mm == score[best]
-    assert cs.other_forms(fits[best][0], ranges, "x", opts)[0] is None
-    assert cs.other_forms(fits[worst][0], ranges, "x", opts, parsimony=0.99)[0] is None   # by the margin only
-    # fits at hand (step 1's r2c1 forms when r2c1 is kept) are taken as they are, not fitted again
-    at_hand = [fits[f] for f in CHOSEN_FROM if f != worst]
-    taken, again = cs.other_forms(fits[worst][0], ranges, "x", opts, fitted=at_hand)
-    assert all(any(a is b for b in at_hand) for a in again) and taken is fits[best]
 
 
 def test_a_structure_decided_by_rounding_is_flagged_and_noted():

@@ -1,7 +1,8 @@
 """``fdid diagnose`` takes every model ``fdid identify`` writes.
 
 * A two-axis trace gives a combined per-axis model (``DriveModel.combine``); diagnosis splits it
-  into its blocks, diagnoses each on its own axis and combines the results again.
+  into its blocks (here) and diagnoses each on its own axis and combines the results again (the
+  checks of ``benchmarks/bench_end_to_end.py``, ``checks/diagnose_combined.py``).
 * A model fitted on a tool-side acceleration (two integrators, predicts ``tool_position``) is a
   tool-side model: the backlash effect goes on its fitted output instead of failing for want of
   a tracking-error output.
@@ -10,8 +11,8 @@
 Data: the ``coupling`` scenario (two axes, force on x = 0.02 kg times y's commanded
 acceleration) and the ``backlash`` scenario, both with 6 moves (seconds of CPU, not minutes).
 """
-import json
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,7 +21,7 @@ from fdid_fmi.cli import main
 from fdid_fmi.diagnose import augment as ag
 from fdid_fmi.diagnose import diagnose
 from fdid_fmi.diagnose.loop import split_blocks
-from fdid_fmi.diagnose.residuals import residuals, with_channels
+from fdid_fmi.diagnose.residuals import with_channels
 from fdid_fmi.diagnose.scenarios import scenario
 from fdid_fmi.model import DriveModel, load_model
 
@@ -38,85 +39,14 @@ def _write_csv(tr, path):
 def two_axis(tmp_path_factory):
     """(train trace, held-out trace, train CSV, model JSON from ``fdid identify``).
 
-    ``fdid identify`` with its default method and structure choice (pole search, structure
-    chosen per axis, combined per-axis model); only the DE iterations are cut (``--maxiter 5``)
-    to keep the candidate fits within the test budget (about 11 CPU-s instead of 80).
+    The model is stored (``tests/data/make_fitted_models.py``): ``fdid identify`` on this CSV with
+    its default method and structure choice (pole search, structure chosen per axis, combined
+    per-axis model), only the DE iterations cut (``--maxiter 5``).
     """
     d = tmp_path_factory.mktemp("combined")
     tr, va = scenario("coupling", n_moves=6)
     _write_csv(tr, d / "train.csv")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        assert main(["identify", str(d / "train.csv"), "-o", str(d / "model.json"), "--maxiter", "5"]) == 0
-    return tr, va, d / "train.csv", d / "model.json"
-
-
-def test_identify_then_diagnose_two_axes_cli(two_axis, capsys):
-    _, _, csv, mpath = two_axis
-    given = load_model(mpath)
-    assert len(given.identification["blocks"]) == 2          # what identify writes: combined
-    out = mpath.with_name("diagnosed.json")
-    js = mpath.with_name("diagnosis.json")
-    capsys.readouterr()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        rc = main(["diagnose", str(mpath), "--train", str(csv), "-o", str(out), "--json", str(js)])
-    text = capsys.readouterr().out
-    assert rc == 0
-    m = load_model(out)
-    assert isinstance(m, DriveModel) and m.axes == ["x", "y"]
-    assert len(m.identification["blocks"]) == 2
-    d = json.loads(js.read_text())
-    per = d["per_axis"]
-    assert sorted(per) == ["x", "y"]
-    # each block is scored on its own axis only
-    assert list(per["x"]["before"]["val"]) == ["x"] and list(per["y"]["before"]["val"]) == ["y"]
-    # y's commanded motion pushes x: found on x (as another axis's command), not on y
-    assert "coupling" in per["x"]["tried"]
-    assert "coupling" not in per["y"]["tried"]
-    assert "axis x: tried" in text and "axis y: tried" in text
-    # no tool-side channels: each axis says backlash was not checked (console and JSON); x moves
-    # twice before the split, too few moves for the asymmetric-friction t statistic
-    assert [(n["axis"], n["kind"]) for n in d["notes"]] == [("x", "not_checked"), ("x", "not_observable"),
-                                                            ("y", "not_observable")]
-    assert "note (not_observable): axis y: lost motion" in text
-    # no --val: split at a standstill, so the held-out part starts at rest as the free run does
-    # (split while x moved at 97 mm/s, x was held out at 16.6 um RMS against 0.61 um fitted)
-    assert "split at the standstill" in d["split"] and "split at the standstill" in text
-    for a in ("x", "y"):
-        assert per[a]["before"]["val"][a]["rms_um"] < 2 * per[a]["before"]["train"][a]["rms_um"]
-
-
-def test_combined_diagnosis_keeps_per_axis_effect(two_axis):
-    """With a held-out trace the x block keeps the coupling; the result is combined again and
-    each axis of it predicts exactly what its diagnosed block predicts."""
-    tr, va, _, mpath = two_axis
-    given = load_model(mpath)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        diag = diagnose(given, tr, va, detectors=["coupling"], max_steps=1)
-    assert sorted(diag.axes) == ["x", "y"]
-    assert [(e["kind"], e["axis"]) for e in diag.effects_added] == [("coupling", "x")]
-    assert diag.axes["y"].effects_added == []
-    # the external input is y's commanded position; its port name must not clash with y's command
-    ext = [p for p in diag.final.inputs if p.kind == "external"]
-    assert len(ext) == 1 and ext[0].axis == "x" and ext[0].params.get("channel") == "y_cmd"
-    assert ext[0].name != "y_cmd"
-    assert diag.after["val"]["x"]["rms_um"] < 0.95 * diag.before["val"]["x"]["rms_um"]
-    assert diag.after["val"]["y"] == diag.before["val"]["y"]
-    final = DriveModel.from_dict(json.loads(json.dumps(diag.final.to_dict())))
-    assert final.axes == ["x", "y"] and len(final.identification["blocks"]) == 2
-    blocks = split_blocks(final)
-    assert [b.axes for b in blocks] == [["x"], ["y"]]
-    # the combined model scores as its blocks (not to the last bit: the simulator's stick/slip
-    # decision at rest differs by rounding between a joint and a per-block solve, <= 0.7 um here)
-    tab = residuals(final, va).table()
-    for b in blocks:
-        a = b.axes[0]
-        assert tab[a]["rms_um"] == pytest.approx(residuals(b, va).table()[a]["rms_um"], rel=0.02)
-        assert tab[a]["rms_um"] == pytest.approx(diag.after["val"][a]["rms_um"], rel=0.02)
-    j = diag.to_json()
-    assert j["per_axis"]["x"]["effects_added"][0]["kind"] == "coupling"
+    return tr, va, d / "train.csv", Path(__file__).parent / "data" / "coupling_two_axis_model.json"
 
 
 def test_split_blocks_round_trip(two_axis):

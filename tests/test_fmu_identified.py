@@ -1,31 +1,31 @@
 """FMUs of IDENTIFIED models: a flexible-mode model and a coupled two-axis model
 (the SISO EMPS model is in test_fmu_validate.py) exported as FMUs, validated through fmpy on a
 held-out trace, equal to the reference simulator and to a C host run, and as good against the
-measurement as the model itself."""
+measurement as the model itself. The models are stored (``tests/data/make_fitted_models.py``)."""
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from fdid_fmi.fmu import export_fmu, validate_fmu
 from fdid_fmi.fmu.validate import run_fmu
-from fdid_fmi.identify import Bounds, identify_mimo, mimo_structure
 from fdid_fmi.metrics import rms
+from fdid_fmi.model import load_model
 from fdid_fmi.simulate import simulate
 from fdid_fmi.virtual import MachineConfig, presets, simulate_machine
 from fdid_fmi.virtual import trajectories as tj
 from fmu_support.host import build_host, run_host
 
 
+DATA = Path(__file__).parent / "data"
+
+
 @pytest.fixture(scope="module")
 def flexible(tmp_path_factory):
+    """The flexible Y axis fitted on velocity and tool position; a held-out trace of 6 moves."""
     cfg = presets.flexible_y()
-    nyq = 0.5 / cfg.Ts
-    train = simulate_machine(MachineConfig(axes=[cfg.axis("y")], Ts=cfg.Ts),
-                             tj.linear_moves(n_moves=8, axes=("y",), Ts=cfg.Ts, seed=1), seed=1)
-    m = identify_mimo(train, mimo_structure(("y",), ("velocity", "tool_position"), 1, 2, same_sample="hold"),
-                      bounds=Bounds([(0.02, nyq)], [(0.02, nyq), (20.0, 40.0)], [(0.01, 4.0), (0.001, 0.5)]),
-                      seed=0, maxiter=40)
+    m = load_model(DATA / "flexible_tool_model.json")
     val = simulate_machine(MachineConfig(axes=[cfg.axis("y")], Ts=cfg.Ts),
                            tj.linear_moves(n_moves=6, axes=("y",), Ts=cfg.Ts, seed=9), seed=9)
     fmu = export_fmu(m, tmp_path_factory.mktemp("flex") / "flex.fmu")
@@ -34,19 +34,10 @@ def flexible(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def coupled(tmp_path_factory):
+    """The coupled two-axis model (one 6th-order denominator) fitted on a spiral; a circle held out."""
     cfg = presets.coupled_xy()
     Ts = cfg.Ts
-    train = [simulate_machine(cfg, tj.spiral(Ts=Ts), seed=5)]
-    dec = [identify_mimo(train, mimo_structure((ax,), ("error",), 1, 1, same_sample="hold"), seed=0, maxiter=20)
-           for ax in "xy"]
-    real = [d.identification["real_hz"][0] for d in dec]
-    cplx = [d.identification["complex_hz_zeta"][0] for d in dec]
-    bounds = Bounds([(r / 1.5, r * 1.5) for r in real], [(w / 1.5, w * 1.5) for w, _ in cplx],
-                    [(z / 2, min(2 * z, 4.0)) for _, z in cplx])
-    vt = {ax: d.identification["v_tilde_regressor_mm_s"][ax] for ax, d in zip("xy", dec)}
-    m = identify_mimo(train, mimo_structure(("x", "y"), ("error",), 2, 2, coupled=True, same_sample="hold"),
-                      bounds=bounds,
-                      v_tilde=vt, seed=0, maxiter=10)
+    m = load_model(DATA / "coupled_xy_model.json")
     val = simulate_machine(cfg, tj.circle(Ts=Ts), seed=3)
     d = tmp_path_factory.mktemp("coupled")
     return m, val, export_fmu(m, d / "coupled.fmu"), d

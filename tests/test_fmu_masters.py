@@ -5,56 +5,50 @@ and its breakaway term (two play states run in the FMU) and the real EMPS drive:
 exported, then driven (a) by ``fdid validate``, i.e. ``fmpy.simulate_fmu`` with an input table of
 the measured commands and ``step_size`` = the nominal Ts as a decimal, and (b) by the ecos
 co-simulation engine (set inputs, step, read). Either gives ``fdid simulate``'s positions at the
-same time stamps to 1e-9 mm, and the same RMS against the measurement. The same-sample form is
-pinned to what ``identify`` chooses for these drives (tested in test_pole_search_virtual), which
-halves the identification time.
+same time stamps to 1e-9 mm, and the same RMS against the measurement. The twins are stored
+(``tests/data/make_fitted_models.py``: the pole search with seed 0 and 30 generations, the
+same-sample form pinned to what ``identify`` chooses for these drives, which the pole-search
+checks of ``benchmarks/bench_end_to_end.py`` assert).
 """
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from fdid_fmi.fmu import export_fmu, validate_fmu
-from fdid_fmi.identify import identify_mimo, identify_siso, mimo_structure
-from fdid_fmi.identify.structure import InputSpec
 from fdid_fmi.metrics import rms
+from fdid_fmi.model import load_model
 from fdid_fmi.simulate import run_up, simulate
 from fdid_fmi.virtual import MachineConfig, presets, simulate_machine
 from fdid_fmi.virtual import trajectories as tj
 
+DATA = Path(__file__).parent / "data"
 
-def _virtual(cfg, ident):
+
+def _virtual_val(cfg):
+    """Four moves of X (seed 7), not the twin's training moves."""
     one = MachineConfig(axes=[cfg.axis("x")], Ts=cfg.Ts)
-    train = simulate_machine(one, tj.linear_moves(n_moves=8, axes=("x",), Ts=cfg.Ts, seed=1), seed=1)
-    val = simulate_machine(one, tj.linear_moves(n_moves=4, axes=("x",), Ts=cfg.Ts, seed=7), seed=4)
-    return ident(train), val
+    return simulate_machine(one, tj.linear_moves(n_moves=4, axes=("x",), Ts=cfg.Ts, seed=7), seed=4)
 
 
 @pytest.fixture(scope="module", params=["no feed-forward", "feed-forward", "play law", "EMPS"])
 def twin(request, tmp_path_factory, shared_data_optional):
     if request.param == "no feed-forward":
-        m, val = _virtual(presets.deckel_maho_like(), lambda tr: identify_siso(tr, "x", seed=0, maxiter=30,
-                                                                              same_sample="hold"))
+        m, val = load_model(DATA / "twin_no_feedforward_model.json"), _virtual_val(presets.deckel_maho_like())
     elif request.param == "feed-forward":
-        m, val = _virtual(presets.with_feedforward(),
-                          lambda tr: identify_mimo(tr, mimo_structure(("x",), ("error",), 2, 1,
-                                                                 same_sample="cubic"), seed=0,
-                                                   maxiter=30))
+        m, val = load_model(DATA / "twin_feedforward_model.json"), _virtual_val(presets.with_feedforward())
     elif request.param == "play law":      # presliding friction: the play's state runs in the FMU
         from plant2 import scenarios as p2
-        train, vals, _ = p2.scenario("stribeck")
-        st = mimo_structure(("x",), ("error",), 1, 2, friction=False, play_mm=0.002, same_sample="quadratic")
+        _, vals, _ = p2.scenario("stribeck")
         # and its breakaway (what diagnosis adds on this axis: augment.add_stribeck), on the play's terms
-        brk = InputSpec("feature", "x", params={"function": "play_stribeck", "width_mm": 0.002, "v_s": 3.0,
-                                                "source": "position"})
-        st.inputs.append(brk)
-        st.mask.update({(o, brk.name): t for (o, i), t in list(st.mask.items()) if i == "x_play"})
-        m, val = identify_mimo(train, st, seed=0, maxiter=30), vals[0]
+        m, val = load_model(DATA / "twin_play_law_model.json"), vals[0]
         assert [p.params["function"] for p in m.inputs if p.kind == "feature"] == ["play", "play_stribeck"]
     else:
         if shared_data_optional is None:
             pytest.skip("real data folder ../shared/data is absent")
         from fdid_fmi.io import read_trace
         val = read_trace(shared_data_optional / "emps" / "DATA_EMPS.mat")
-        m = identify_siso(val, "x", integral_action=False, seed=0, maxiter=30, same_sample="hold")
+        m = load_model(DATA / "twin_emps_model.json")
     return request.param, m, val, export_fmu(m, tmp_path_factory.mktemp("twin") / "twin.fmu")
 
 

@@ -23,18 +23,12 @@ LIMITS = {a: AxisLimits(100, 2000, 1e5) for a in "xyz"}
 
 @pytest.fixture(scope="module")
 def machine():
-    """The virtual Deckel-Maho-like machine and a model identified from its traces (once)."""
-    from fdid_fmi.identify import identify_siso
-    from fdid_fmi.model import DriveModel
-    from fdid_fmi.virtual import MachineConfig, presets, simulate_machine
-    from fdid_fmi.virtual import trajectories as tj
-    cfg = presets.deckel_maho_like()
-    ms = []
-    for ax in ("x", "y"):
-        tr = simulate_machine(MachineConfig(axes=[cfg.axis(ax)], Ts=cfg.Ts),
-                              tj.linear_moves(n_moves=6, axes=(ax,), Ts=cfg.Ts, seed=1), seed=1)
-        ms.append(identify_siso(tr, ax, seed=0))
-    return cfg, DriveModel.combine(ms, method="pole-search")
+    """The virtual Deckel-Maho-like machine and the twin identified from its traces (six moves per
+    axis, the SISO pole search with seed 0, combined: stored by tests/data/make_xy_twin_model.py)."""
+    from pathlib import Path
+    from fdid_fmi.model import load_model
+    from fdid_fmi.virtual import presets
+    return presets.deckel_maho_like(), load_model(Path(__file__).parent / "data" / "xy_twin_model.json")
 
 
 @pytest.fixture(scope="module")

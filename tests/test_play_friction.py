@@ -62,7 +62,7 @@ def test_cli_identify_with_the_play_law_then_export_and_validate(tmp_path):
                               text=True, timeout=600)
 
     r = fdid("identify", csv, "--method", "mimo", "--n-complex", "2", "--play-width", "0.004",
-             "--same-sample", "quadratic", "--maxiter", "20", "-o", tmp_path / "m.json")
+             "--same-sample", "quadratic", "--maxiter", "3", "-o", tmp_path / "m.json")
     assert r.returncode == 0, r.stderr
     assert "play (presliding friction) half-width [mm]: x 0.004" in r.stdout
     from fdid_fmi.model import load_model

@@ -4,13 +4,15 @@ The independent plant (tests/plant2: LuGre friction with presliding, a velocity 
 rest when its command stops: its true motor position settles by ~0.4 µm over the next seconds
 (75-94 nm/s over the first 5 s on the three move sets below, 0.1-3 nm/s after that). The twin
 identified from its training moves (the pole search, rigid structure, as in
-tests/test_pole_search_virtual.py) settles alike. Measured: 89 / 69 / 99 nm/s against the plant's
+benchmarks/checks/pole_search_virtual.py; stored) settles alike. Measured: 89 / 69 / 99 nm/s against the plant's
 91 / 75 / 94 nm/s, the positions after 5 s 0.01-0.03 µm apart. On the virtual drive, whose
 stiction holds the axis, the twins' drift is the other half of this comparison (README, "At rest").
 """
+from pathlib import Path
+
 import numpy as np
 
-from fdid_fmi.identify import identify_siso
+from fdid_fmi.model import load_model
 from fdid_fmi.simulate import simulate
 from fdid_fmi.virtual import trajectories as tj
 
@@ -20,9 +22,10 @@ from plant2.scenarios import SCENARIOS
 
 
 def test_twin_settles_like_the_plant_after_a_stop():
-    train, _, truth = p2.scenario("clean_rigid")
+    _, _, truth = p2.scenario("clean_rigid")
     name = truth["axis"]
-    model = identify_siso(train[0], name, seed=0)
+    # the pole search (seed 0, default search) on the training moves: tests/data/make_fitted_models.py
+    model = load_model(Path(__file__).parent / "data" / "plant2_clean_rigid_siso_model.json")
     machine = SCENARIOS["clean_rigid"][0]()
     Ts, n = machine.Ts, int(5 / machine.Ts)
     for seed in (5, 6, 7):

@@ -71,7 +71,7 @@ def test_stick_invariants_on_a_stiff_axis():
     axis it does, exactly (stick branch; no creep through the transition band), and the axis
     moves again only from the friction limit (a breakaway). This extreme model stick-slips at
     rest every few samples (its integral action winds up against the holding force); identified
-    twins rest (test_pole_search_virtual)."""
+    twins rest (benchmarks/checks/pole_search_virtual.py)."""
     m = siso_model(d0=5000.0, v_tilde=0.05)
     xr = np.concatenate([moves(2000), np.full(3000, moves(2000)[-1])])
     sim = simulate(m, {"x": xr}, Ts=TS)

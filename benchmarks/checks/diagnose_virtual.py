@@ -11,6 +11,7 @@ import warnings
 import numpy as np
 import pytest
 
+from checks import check
 from fdid_fmi.diagnose import diagnose
 from fdid_fmi.diagnose.limits import NoteKind
 from fdid_fmi.diagnose.scenarios import INTEGRAL_ACTION, scenario
@@ -18,8 +19,8 @@ from fdid_fmi.identify import identify_siso
 
 
 def _run(name, axis="x", base_maxiter=30, **kw):
-    """Few search iterations keep the suite fast; where the searches do not converge in them, the
-    result follows the last bits of the BLAS kernels (AVX2 / AVX-512) and the test gives more."""
+    """Few search iterations keep each run short; where the searches do not converge in them, the
+    result follows the last bits of the BLAS kernels (AVX2 / AVX-512) and the check gives more."""
     tr, va = scenario(name)
     kw.setdefault("maxiter", 20)
     with warnings.catch_warnings():
@@ -48,8 +49,8 @@ def _val_gain(d, channel="x"):
     return 1.0 - a / b
 
 
-@pytest.mark.parametrize("name", ["clean", "clean_fast", "clean_xy", "clean_p"])
-def test_clean_data_gets_nothing(name):
+@check("tests/test_diagnose_virtual.py::test_clean_data_gets_nothing[{name}]", {'name': 'clean'}, {'name': 'clean_fast'}, {'name': 'clean_xy'}, {'name': 'clean_p'})
+def clean_data_gets_nothing(name):
     d, _ = _run(name)
     assert d.effects_added == []
     assert d.final is d.model
@@ -60,7 +61,8 @@ def test_clean_data_gets_nothing(name):
     assert j["notes"][0]["kind"] == "not_observable"
 
 
-def test_stribeck():
+@check("tests/test_diagnose_virtual.py::test_stribeck")
+def stribeck():
     d, tr = _run("stribeck")
     kinds = [e["kind"] for e in d.effects_added]
     assert kinds == ["stribeck"]
@@ -72,7 +74,8 @@ def test_stribeck():
     assert _val_gain(d) >= 0.2                                # measured: about 30 %
 
 
-def test_stribeck_on_the_default_structure():
+@check("tests/test_diagnose_virtual.py::test_stribeck_on_the_default_structure")
+def stribeck_on_the_default_structure():
     """``fdid identify``'s default choice on this trace is r2c2 (cubic): its second pair takes
     part of the breakaway, and the residual's concentration at motion ends (2.01) falls below
     the largest clean thesis-path value (2.17). The Stribeck gate is a floor (1.0), so
@@ -90,7 +93,8 @@ def test_stribeck_on_the_default_structure():
     assert _val_gain(d) >= 0.05                            # the keep criterion; measured: 9 %
 
 
-def test_backlash_on_the_tool_side():
+@check("tests/test_diagnose_virtual.py::test_backlash_on_the_tool_side")
+def backlash_on_the_tool_side():
     d, _ = _run("backlash")
     assert [e["kind"] for e in d.effects_added] == ["backlash"]
     e = d.effects_added[0]
@@ -103,7 +107,8 @@ def test_backlash_on_the_tool_side():
     assert d.notes == []                                       # the tool side was recorded
 
 
-def test_position_periodic_force():
+@check("tests/test_diagnose_virtual.py::test_position_periodic_force")
+def position_periodic_force():
     d, _ = _run("periodic")
     assert [e["kind"] for e in d.effects_added] == ["periodic_position"]
     e = d.effects_added[0]
@@ -113,7 +118,8 @@ def test_position_periodic_force():
     assert fns == ["cos_position", "sin_position"]
 
 
-def test_unmodelled_mode():
+@check("tests/test_diagnose_virtual.py::test_unmodelled_mode")
+def unmodelled_mode():
     # converged searches: at 30 / 20 iterations the base model and the mode's refit end in
     # different points of a flat valley on AVX2 and AVX-512 (52.6-53.9 Hz); from 60 / 40 on they
     # agree (53.86 Hz)
@@ -128,7 +134,8 @@ def test_unmodelled_mode():
     assert _val_gain(d) >= 0.2                                 # measured: 37 %
 
 
-def test_cross_axis_coupling():
+@check("tests/test_diagnose_virtual.py::test_cross_axis_coupling")
+def cross_axis_coupling():
     d, _ = _run("coupling")
     assert [e["kind"] for e in d.effects_added] == ["coupling"]
     e = d.effects_added[0]
@@ -143,7 +150,8 @@ def test_cross_axis_coupling():
     assert j["after"]["val"]["x"]["rms_um"] < j["before"]["val"]["x"]["rms_um"]
 
 
-def test_asymmetric_coulomb_in_a_p_loop():
+@check("tests/test_diagnose_virtual.py::test_asymmetric_coulomb_in_a_p_loop")
+def asymmetric_coulomb_in_a_p_loop():
     d, _ = _run("asymmetric")
     assert [e["kind"] for e in d.effects_added] == ["asymmetric_friction"]
     e = d.effects_added[0]
@@ -151,7 +159,8 @@ def test_asymmetric_coulomb_in_a_p_loop():
     assert _val_gain(d) >= 0.3                # measured: about 56 %
 
 
-def test_asymmetric_coulomb_under_a_structure_with_integral_action():
+@check("tests/test_diagnose_virtual.py::test_asymmetric_coulomb_under_a_structure_with_integral_action")
+def asymmetric_coulomb_under_a_structure_with_integral_action():
     """``fdid identify``'s default choice on the P loop's trace is r1c2 with integral action
     (0.54 um training free run against 1.22-1.47 um without it): it rejects a constant force and
     leaves no offset to see (|t| 0.13). The detector then looks at the model's twin without
@@ -172,8 +181,8 @@ def test_asymmetric_coulomb_under_a_structure_with_integral_action():
     assert _val_gain(d) >= 0.3                             # measured: 44 %
 
 
-@pytest.mark.parametrize("name, delayed", [("delay", True), ("clean_soft", False)])
-def test_dead_time_statistics_separate_a_delay_from_its_clean_twin(name, delayed):
+@check("tests/test_diagnose_virtual.py::test_dead_time_statistics_separate_a_delay_from_its_clean_twin[{name}-{delayed}]", {'name': 'delay', 'delayed': True}, {'name': 'clean_soft', 'delayed': False})
+def dead_time_statistics_separate_a_delay_from_its_clean_twin(name, delayed):
     """Both dead-time statistics (``delay.py``: the residual's early answer to the command, and
     the refined refits' free run, with the command shifted) on the thesis-path model: the
     3-sample recording delay passes both gates, the same soft loop on the same kind of moves
@@ -207,7 +216,8 @@ def test_dead_time_statistics_separate_a_delay_from_its_clean_twin(name, delayed
         assert not free.detected            # measured: 1.0, 0.276 um without a shift, 0.280 at one
 
 
-def test_a_heavily_damped_pair_is_not_named_a_mode():
+@check("tests/test_diagnose_virtual.py::test_a_heavily_damped_pair_is_not_named_a_mode")
+def a_heavily_damped_pair_is_not_named_a_mode():
     """A mode multiplies every numerator by a quadratic (``augment._times_quadratic``), so a
     heavily damped pair can act as a Padé approximant of a dead time: on the 3-sample recording
     delay the mode's refit would be kept (190 Hz, damping 0.47; held out 11 % better than the

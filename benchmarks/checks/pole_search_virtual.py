@@ -5,11 +5,14 @@ Validation: a diamond and a circle on the two-axis machine, and another move seq
 Figures are free-run discrepancies of the predicted tracking error (model driven by the
 commands alone) against the simulated measurement.
 """
+import functools
+
 import numpy as np
 import pytest
 
-from fdid_fmi.identify import (Bounds, StructureChoice, identify_auto, identify_full_ls, identify_mimo,
-                               identify_quasi_static, identify_siso, mimo_structure)
+from checks import check
+from fdid_fmi.identify import (Bounds, identify_full_ls, identify_mimo, identify_quasi_static, identify_siso,
+                               mimo_structure)
 from fdid_fmi.metrics import rms
 from fdid_fmi.model import DriveModel
 from fdid_fmi.simulate import simulate
@@ -49,8 +52,8 @@ def discrepancy(model, trace, ax):
     return rms(simulate(model, trace).axes[ax]["error"] - trace.error(ax))
 
 
-@pytest.mark.parametrize("ax", ["x", "y"])
-def test_without_feedforward_pole_search_beats_full_ls(ax):
+@check("tests/test_pole_search_virtual.py::test_without_feedforward_pole_search_beats_full_ls[{ax}]", {'ax': 'x'}, {'ax': 'y'})
+def without_feedforward_pole_search_beats_full_ls(ax):
     cfg = presets.deckel_maho_like()
     train, vals = data(cfg, ax)
     ps = identify_siso(train, ax, seed=0)
@@ -67,8 +70,8 @@ def test_without_feedforward_pole_search_beats_full_ls(ax):
         assert d_ps <= 0.3 * d_fl, (name, d_ps, d_fl)
 
 
-@pytest.mark.parametrize("ax", ["x", "y"])
-def test_with_feedforward_pole_search_beats_baselines(ax):
+@check("tests/test_pole_search_virtual.py::test_with_feedforward_pole_search_beats_baselines[{ax}]", {'ax': 'x'}, {'ax': 'y'})
+def with_feedforward_pole_search_beats_baselines(ax):
     """Small, friction-dominated errors. The thesis's rigid-body structure (friction through
     d0 s/P(s) only) is not enough here; one more real pole (the current loop) is: the
     structure, not the code, decides."""
@@ -85,8 +88,10 @@ def test_with_feedforward_pole_search_beats_baselines(ax):
         assert d["ps"] < d["fl"] and d["ps"] < d["qs"], (name, d)
 
 
-@pytest.fixture(scope="module")
+@functools.lru_cache(maxsize=None)
 def flexible():
+    """(machine, training trace, validation traces, search bounds, the drive-train mode's truth)
+    of the flexible Y axis (made once per process)."""
     cfg = presets.flexible_y()
     nyq = 0.5 / cfg.Ts
     train = simulate_machine(single_axis(cfg, "y"),
@@ -106,8 +111,9 @@ def _mode_of(model, lo=20.0, hi=40.0):
     return pairs[0]
 
 
-def test_flexible_mode_from_tool_position(flexible):
-    cfg, train, vals, bounds, mode = flexible
+@check("tests/test_pole_search_virtual.py::test_flexible_mode_from_tool_position")
+def flexible_mode_from_tool_position():
+    cfg, train, vals, bounds, mode = flexible()
     m = identify_mimo(train, mimo_structure(("y",), ("velocity", "tool_position"), 1, 2, same_sample="hold"),
                       bounds=bounds, seed=0, maxiter=40)
     f, z = _mode_of(m)
@@ -119,34 +125,12 @@ def test_flexible_mode_from_tool_position(flexible):
         assert rms(pred - e_tool) < 0.005 * rms(e_tool), name   # measured 0.2-0.3 %
 
 
-def test_flexible_mode_by_default(flexible):
-    """``fdid identify`` with no structure flags on a trace that records the tool side: every
-    candidate also predicts the tool position and is scored on it, and the choice carries the
-    drive-train mode -- default search bounds (up to Nyquist), no damping on a bound."""
-    cfg, train, vals, _, mode = flexible
-    m = identify_auto(train, "y", seed=0, workers=2)
-    ch = StructureChoice.from_dict(m.identification["structure_choice"])
-    # two complex pairs: the default (vp) search keeps r1c2-noI (tool-side free run 0.376 um;
-    # r2c2-noI 0.374 um is within the margin); with de r1c2, or r2c2 where its search (a flat
-    # valley of the two real poles) ends in a point that beats r1c2 by more than the margin --
-    # which it does with AVX2 BLAS kernels (0.45 against 0.57 um) and not with AVX-512 (0.63):
-    # the drive-train mode is in each (25.66 Hz)
-    assert ch.outputs == ["error", "tool_position"] and ch.chosen in ("r1c2-noI", "r1c2", "r2c2")
-    assert not next(c for c in ch.candidates if c.chosen).on_bound
-    f, z = _mode_of(m)
-    assert f == pytest.approx(mode["hz"], rel=0.02)          # measured 25.66 Hz (truth 25.66)
-    assert z == pytest.approx(mode["zeta"], rel=0.30)        # measured 0.0137 (truth 0.0140)
-    for name, v in vals.items():
-        e_tool = v.cmd("y") - v.get("y", "tool")
-        pred = v.cmd("y") - simulate(m, v).axes["y"]["tool_position"]
-        assert rms(pred - e_tool) < 0.005 * rms(e_tool), name   # measured 0.14 / 0.25 um (de: 0.29 / 0.54)
-
-
-def test_flexible_mode_from_tool_acceleration(flexible):
+@check("tests/test_pole_search_virtual.py::test_flexible_mode_from_tool_acceleration")
+def flexible_mode_from_tool_acceleration():
     """Fitted on the tool-side acceleration; a double integrator appended by shifting the
     numerators (Eqn 5.26-5.29) and a 2nd-order d.c.-gain constraint (Eqn 5.15) keep the
     position prediction from drifting."""
-    cfg, _, vals, bounds, mode = flexible
+    cfg, _, vals, bounds, mode = flexible()
     # position from acceleration needs more data than from position (thesis Table 7-5)
     train = simulate_machine(single_axis(cfg, "y"),
                              tj.linear_moves(n_moves=20, axes=("y",), Ts=cfg.Ts, seed=1), seed=1)
@@ -164,7 +148,8 @@ def test_flexible_mode_from_tool_acceleration(flexible):
         assert rms(pred - e_tool) < 0.05 * rms(e_tool), name    # measured ~3 %
 
 
-def test_coupled_model_beats_decoupled_models():
+@check("tests/test_pole_search_virtual.py::test_coupled_model_beats_decoupled_models")
+def coupled_model_beats_decoupled_models():
     """Thesis Figure 5-12: one 6th-order denominator for X and Y (model 2: bounds from the
     decoupled 3rd-order models) against two decoupled 3rd-order models, on a machine with
     cross-axis coupling."""
