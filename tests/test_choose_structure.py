@@ -7,7 +7,7 @@ import json
 import pytest
 
 from fdid_fmi.cli import main
-from fdid_fmi.cli.identify import structure_is_auto
+from fdid_fmi.pipeline.identify import structure_is_auto
 from fdid_fmi.errors import InputError
 from fdid_fmi.identify import StructureChoice
 from fdid_fmi.identify.choose_structure import CandidateScore, choose
