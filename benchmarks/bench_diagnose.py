@@ -1,5 +1,5 @@
 """Diagnosis wall time with its independent refits in one process and in worker processes, side by
-side (``diagnose(workers=N)``, ``fdid diagnose --jobs N``; README, "Closing the loop").
+side (``diagnose(workers=N)``, ``fdid diagnose --jobs N``; docs/method.md, section 6).
 
 Virtual-drive scenarios (``fdid_fmi.diagnose.scenarios``: one undeclared effect each, a held-out
 trace), the thesis path's model (``identify_siso``, seed 0, 30 generations), each diagnosed with

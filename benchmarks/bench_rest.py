@@ -1,10 +1,10 @@
 """At rest: how far the twin moves in the 5 s after a stop, against how far the plant itself does
-(no creep unless the data show it; README, "At rest").
+(no creep unless the data show it; docs/decisions/rest-behaviour.md).
 
 Two plants that share no code: the virtual drive (``fdid_fmi.virtual``; stiction holds its axis,
 the measured encoder of 0.1 µm is what it shows) and plant2 (``tests/plant2``; LuGre friction
 with presliding, whose true motor position settles for seconds after a stop). On each, twins are
-identified from the training moves as the README's accuracy tables do (seed 0): the rigid SISO
+identified from the training moves as the accuracy tables of docs/results.md do (seed 0): the rigid SISO
 pole search without feed-forward, two real poles and a complex pair with it. Each twin and its
 plant then run the same commands: three linear moves (seeds 5, 6, 7), then 5 s at rest.
 

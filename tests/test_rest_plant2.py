@@ -6,7 +6,7 @@ rest when its command stops: its true motor position settles by ~0.4 µm over th
 identified from its training moves (the pole search, rigid structure, as in
 benchmarks/checks/pole_search_virtual.py; stored) settles alike. Measured: 89 / 69 / 99 nm/s against the plant's
 91 / 75 / 94 nm/s, the positions after 5 s 0.01-0.03 µm apart. On the virtual drive, whose
-stiction holds the axis, the twins' drift is the other half of this comparison (README, "At rest").
+stiction holds the axis, the twins' drift is the other half of this comparison (docs/decisions/rest-behaviour.md).
 """
 from pathlib import Path
 

@@ -187,7 +187,7 @@ def dead_time_statistics_separate_a_delay_from_its_clean_twin(name, delayed):
     the refined refits' free run, with the command shifted) on the thesis-path model: the
     3-sample recording delay passes both gates, the same soft loop on the same kind of moves
     without it passes neither. On this 3-pole model the early answer's shift loses to one more
-    pole held out (the order check); the free run's, 3 samples, is kept (README)."""
+    pole held out (the order check); the free run's, 3 samples, is kept (docs/method.md, section 6)."""
     from fdid_fmi.diagnose import augment as ag, delay
     from fdid_fmi.diagnose.base import Context
     from fdid_fmi.diagnose.residuals import residuals

@@ -39,7 +39,7 @@ def assert_rests(model, ax):
     never reverses from one sample to the next (no chatter). What moves are single-sample slips:
     without feed-forward the holding force alternates and grows (a Jordan block at z = -1 of the
     stuck dynamics, from the Tustin friction path) until it exceeds L; with feed-forward the
-    integral action winds up against the holding friction (README, "At rest")."""
+    integral action winds up against the holding friction (docs/decisions/rest-behaviour.md)."""
     mv = tj.linear_moves(n_moves=3, axes=(ax,), Ts=model.Ts, seed=5)[ax]
     n = int(5 / model.Ts)
     v = simulate(model, {ax: np.concatenate([mv, np.full(n, mv[-1])])}, Ts=model.Ts).axes[ax]["velocity"]

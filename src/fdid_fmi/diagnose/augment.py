@@ -171,7 +171,7 @@ def _times_quadratic(powers, n_new):
     quadratic with a = 0). The rigid body's friction path d0 s (Eqn 4.10) becomes
     s (d0 + d1 s + d2 s^2); its lowest power, the d.c. meaning, is kept. Found on plant2's mode
     (the measuring plant): with d0 s alone the fitted pair sat 5 % below the closed loop's
-    (README)."""
+    (docs/method.md, section 6)."""
     p = set(powers)
     return frozenset(q for q in p | {x + 1 for x in p} | {x + 2 for x in p} if q <= n_new)
 

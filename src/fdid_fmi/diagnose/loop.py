@@ -19,7 +19,7 @@ current structure is also refitted with one more real pole
 (:mod:`.order`). The check is met when that refit meets the keep criterion and no training
 channel rises by more than ``max_loss`` either (a refit that predicts only the held-out data
 better, while its free run on the training data is worse, is no evidence of missing dynamics:
-plant2's delay run shows such a refit, see README).
+plant2's delay run shows such a refit, see docs/method.md, section 6).
 When it is met, a dead time or a mode is kept only if it also beats that refit, and in the first
 round the diagnosis reports the note ``order_too_low`` (:mod:`.limits`; the model is not changed
 by it).

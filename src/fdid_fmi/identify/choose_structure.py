@@ -53,7 +53,7 @@ reporting rule, not fitted to a plant: it flags the bundled two-axis example's k
 hold (0.074 µm against 0.081 µm on x, 0.117 against 0.154 µm on y) and EMPS's r2c2, not the
 feed-forward axis's r2c1. What it means for an FMU: it computes what the model computes from the input
 doubles it is given (exact there); a master that rounds or interpolates its inputs differently
-from ``fdid simulate`` gets outputs that differ by up to the sensitivity (README).
+from ``fdid simulate`` gets outputs that differ by up to the sensitivity (docs/fmu-interface.md).
 
 The score is the free-run RMS (mm) of the predicted minus measured tracking error on the training
 data: the model driven by the commands alone, which the LS projection does not minimise (it fits
