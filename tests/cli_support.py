@@ -1,4 +1,7 @@
-"""Running ``fdid`` in-process from tests, and the check of a refusal: one error line."""
+"""Running ``fdid`` in-process from tests, the check of a refusal (one error line), and the
+trace files the tests hand to ``fdid``."""
+import numpy as np
+
 from fdid_fmi.cli import main
 
 
@@ -21,3 +24,14 @@ def one_line(code, err, *words):
     for w in words:
         assert w in lines[0], (w, lines[0])
     return lines[0]
+
+
+def write_positions_csv(tr, path):
+    """A trace's time, commanded and measured positions as the CSV ``fdid`` reads
+    (``t_s``, ``<axis>_cmd_mm``, ``<axis>_act_mm``; 10 significant digits)."""
+    cols, hdr = [tr.t], ["t_s"]
+    for a in tr.axes:
+        for role in ("cmd", "act"):
+            cols.append(tr.channels[tr.roles[a][role]].data)
+            hdr.append(f"{a}_{role}_mm")
+    np.savetxt(path, np.column_stack(cols), delimiter=",", header=",".join(hdr), comments="", fmt="%.10g")

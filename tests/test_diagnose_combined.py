@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cli_support import write_positions_csv
 from fdid_fmi.cli import main
 from fdid_fmi.diagnose import augment as ag
 from fdid_fmi.diagnose import diagnose
@@ -24,15 +25,6 @@ from fdid_fmi.diagnose.loop import split_blocks
 from fdid_fmi.diagnose.residuals import with_channels
 from fdid_fmi.diagnose.scenarios import scenario
 from fdid_fmi.model import DriveModel, load_model
-
-
-def _write_csv(tr, path):
-    cols, hdr = [tr.t], ["t_s"]
-    for a in tr.axes:
-        for role in ("cmd", "act"):
-            cols.append(tr.channels[tr.roles[a][role]].data)
-            hdr.append(f"{a}_{role}_mm")
-    np.savetxt(path, np.column_stack(cols), delimiter=",", header=",".join(hdr), comments="", fmt="%.10g")
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +37,7 @@ def two_axis(tmp_path_factory):
     """
     d = tmp_path_factory.mktemp("combined")
     tr, va = scenario("coupling", n_moves=6)
-    _write_csv(tr, d / "train.csv")
+    write_positions_csv(tr, d / "train.csv")
     return tr, va, d / "train.csv", Path(__file__).parent / "data" / "coupling_two_axis_model.json"
 
 

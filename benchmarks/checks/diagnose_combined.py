@@ -10,25 +10,16 @@ import io
 import json
 import warnings
 
-import numpy as np
 import pytest
 
 from checks import check
+from cli_support import write_positions_csv
 from fdid_fmi.cli import main
 from fdid_fmi.diagnose import diagnose
 from fdid_fmi.diagnose.loop import split_blocks
 from fdid_fmi.diagnose.residuals import residuals
 from fdid_fmi.diagnose.scenarios import scenario
 from fdid_fmi.model import DriveModel, load_model
-
-
-def _write_csv(tr, path):
-    cols, hdr = [tr.t], ["t_s"]
-    for a in tr.axes:
-        for role in ("cmd", "act"):
-            cols.append(tr.channels[tr.roles[a][role]].data)
-            hdr.append(f"{a}_{role}_mm")
-    np.savetxt(path, np.column_stack(cols), delimiter=",", header=",".join(hdr), comments="", fmt="%.10g")
 
 
 def two_axis(d):
@@ -38,7 +29,7 @@ def two_axis(d):
     chosen per axis, combined per-axis model); only the DE iterations are cut (``--maxiter 5``).
     """
     tr, va = scenario("coupling", n_moves=6)
-    _write_csv(tr, d / "train.csv")
+    write_positions_csv(tr, d / "train.csv")
     with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):
         warnings.simplefilter("ignore")
         assert main(["identify", str(d / "train.csv"), "-o", str(d / "model.json"), "--maxiter", "5"]) == 0

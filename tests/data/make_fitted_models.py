@@ -101,10 +101,10 @@ def coupling_two_axis():
     from fdid_fmi.cli import main
     from fdid_fmi.diagnose.scenarios import scenario
     from fdid_fmi.model import load_model
-    from test_diagnose_combined import _write_csv
+    from cli_support import write_positions_csv
     tr, _ = scenario("coupling", n_moves=6)
     with tempfile.TemporaryDirectory() as d:
-        _write_csv(tr, Path(d) / "train.csv")
+        write_positions_csv(tr, Path(d) / "train.csv")
         assert main(["identify", str(Path(d) / "train.csv"), "-o", str(Path(d) / "model.json"), "--maxiter", "5"]) == 0
         return load_model(Path(d) / "model.json")
 
