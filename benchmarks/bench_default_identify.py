@@ -37,6 +37,8 @@ import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
+from timing import code_state, cpu_s  # noqa: E402  (benchmarks/timing.py, beside this script)
+
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 OUT = HERE / "results"
@@ -61,12 +63,6 @@ def _data(name):
     return train[0], {v.meta["name"]: v for v in vals}
 
 
-def _cpu_s():
-    import resource
-    s, c = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
-    return s.ru_utime + s.ru_stime + c.ru_utime + c.ru_stime
-
-
 def child(name, search):
     """Identify one trace with the default path; print one JSON line."""
     import warnings
@@ -77,11 +73,11 @@ def child(name, search):
     from fdid_fmi.simulate import simulate
     train, vals = _data(name)
     kw = {"search": search} if search else {}
-    cpu0, t0 = _cpu_s(), time.perf_counter()
+    cpu0, t0 = cpu_s(), time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         model = identify_auto(train, AXIS, seed=0, workers=2, **kw)
-    wall, cpu = time.perf_counter() - t0, _cpu_s() - cpu0
+    wall, cpu = time.perf_counter() - t0, cpu_s() - cpu0
     choice = model.identification["structure_choice"]
 
     def err_um(tr):
@@ -100,15 +96,6 @@ def run_one(python, name, search):
     if p.returncode != 0:
         return {"trace": name, "error": (p.stderr.strip().splitlines() or ["?"])[-1][:300]}
     return json.loads(p.stdout.strip().splitlines()[-1])
-
-
-def code_state():
-    def git(*a):
-        try:
-            return subprocess.run(["git", *a], cwd=ROOT, capture_output=True, text=True, timeout=30).stdout.strip()
-        except (OSError, subprocess.SubprocessError):
-            return ""
-    return {"commit": git("rev-parse", "HEAD"), "src_dirty": bool(git("status", "--porcelain", "--", "src"))}
 
 
 def _ratio(a, b):

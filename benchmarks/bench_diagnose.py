@@ -20,7 +20,6 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import resource  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
@@ -31,15 +30,10 @@ import numpy as np  # noqa: E402
 from fdid_fmi.diagnose import diagnose  # noqa: E402
 from fdid_fmi.diagnose.scenarios import INTEGRAL_ACTION, scenario  # noqa: E402
 from fdid_fmi.identify import identify_siso  # noqa: E402
+from timing import cpu_s  # noqa: E402  (benchmarks/timing.py, beside this script)
 
 OUT = Path(__file__).resolve().parent / "results" / "bench_diagnose.json"
 SCENARIOS = ("clean", "stribeck", "periodic", "delay", "mode", "coupling")
-
-
-def cpu_s():
-    """CPU time (s) of this process and of its children that have ended (the pool's workers)."""
-    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
-    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
 
 
 def run(model, tr, va, workers):

@@ -41,7 +41,7 @@ import sys  # noqa: E402
 import time  # noqa: E402
 import traceback  # noqa: E402
 import warnings  # noqa: E402
-from collections import Counter, defaultdict  # noqa: E402
+from collections import Counter  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -56,22 +56,10 @@ from fdid_fmi.diagnose.limits import NoteKind  # noqa: E402
 from fdid_fmi.diagnose.reporting import candidate_table  # noqa: E402
 from fdid_fmi.identify.choose_structure import identify_auto  # noqa: E402
 from fdid_fmi.simulate import simulate  # noqa: E402
+from timing import code_state  # noqa: E402
 
 OUT = ROOT / "benchmarks" / "results"
 OUT_DEFAULT = "bench_family_diagnosis.json"
-
-
-def code_state():
-    """The commit and whether src/ or tests/family had uncommitted changes."""
-    import subprocess
-
-    def git(*a):
-        try:
-            return subprocess.run(["git", *a], cwd=ROOT, capture_output=True, text=True, timeout=30).stdout.strip()
-        except (OSError, subprocess.SubprocessError):
-            return ""
-    return {"commit": git("rev-parse", "HEAD"),
-            "dirty": bool(git("status", "--porcelain", "--", "src", "tests/family"))}
 
 
 def _err(exc):
@@ -358,7 +346,7 @@ def main(argv=None):
     todo = [int(s) for s in args.seeds.split(",") if s] or seeds(args.split, args.cases, args.start)
     OUT.mkdir(parents=True, exist_ok=True)
     path = OUT / args.out
-    res = {"code": code_state(), "settings": {k: v for k, v in vars(args).items() if k != "print_only"},
+    res = {"code": code_state("src", "tests/family"), "settings": {k: v for k, v in vars(args).items() if k != "print_only"},
            "seeds": todo, "cases": []}
     t0 = time.perf_counter()
 

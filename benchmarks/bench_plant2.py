@@ -60,7 +60,7 @@ from fdid_fmi.metrics import rms  # noqa: E402
 from fdid_fmi.simulate import simulate  # noqa: E402
 from plant2 import scenarios as p2  # noqa: E402
 from plant2.linear import closed_loop_pairs  # noqa: E402
-from timing import timed  # noqa: E402  (benchmarks/timing.py)
+from timing import code_state, timed  # noqa: E402  (benchmarks/timing.py)
 
 OUT = ROOT / "benchmarks" / "results"
 MARGIN = 1.2
@@ -69,20 +69,6 @@ VIRTUAL_EFFECTS = {"stribeck": "stribeck", "backlash": "backlash", "periodic": "
                    "delay": "delay", "mode": "mode", "coupling": "coupling", "asymmetric": "asymmetric_friction"}
 DIAG_SETTINGS = {"min_gain": 0.05, "max_loss": 0.01, "max_steps": 4, "maxiter": 25, "exclude": [],
                  "max_delay": 6, "detectors": list(DETECTORS)}
-
-
-def code_state():
-    """The commit and whether src/ had uncommitted changes when the benchmark ran (the numbers
-    belong to that code)."""
-    import subprocess
-
-    def git(*a):
-        try:
-            return subprocess.run(["git", *a], cwd=ROOT, capture_output=True, text=True, timeout=30).stdout.strip()
-        except (OSError, subprocess.SubprocessError):
-            return ""
-    return {"commit": git("rev-parse", "HEAD"), "src_dirty": bool(git("status", "--porcelain", "--", "src")),
-            "src_diff_sha1": __import__("hashlib").sha1(git("diff", "--", "src").encode()).hexdigest()}
 
 
 def _err(exc):
