@@ -437,8 +437,7 @@ def _fit_structures_vp(traces, axis, forms, opts, submit, run):
         width = width_future.result()
         widths = screened[:k] + [width] + screened[k + 1:]
     by_label = {r.label: (r, m) for r, m in sat}
-    b = width[0].label.rpartition("-play")[2]
-    b = float(b[:-2]) * 1e-3
+    b = candidate(width[0].label).play_mm
     play = []
     if width[0].free_run_rms_mm <= (1 + PARSIMONY) * min(r.free_run_rms_mm for r, _ in sat):
         jobs = []

@@ -98,13 +98,9 @@ class _Counter:
 def distinct_minima(points, scale, rtol=0.02, keep=10):
     """Distinct (fun, x) pairs, best first: drop points within ``rtol`` (relative to the
     search box ``scale``) of a better one."""
-    out = []
-    for f, x in sorted(points, key=lambda p: p[0]):
-        if all(np.max(np.abs((x - y) / scale)) > rtol for _, y in out):
-            out.append((float(f), np.array(x)))
-        if len(out) >= keep:
-            break
-    return out
+    ranked = sorted(points, key=lambda p: p[0])
+    kept = distinct_points([x for _, x in ranked], scale, rtol, keep)
+    return [(float(ranked[k][0]), np.array(ranked[k][1])) for k in kept]
 
 
 def _vp(cnt, residuals, lo, hi, seed, maxiter, starts, warm):
@@ -122,7 +118,7 @@ def _vp(cnt, residuals, lo, hi, seed, maxiter, starts, warm):
     screen = qmc.scale(qmc.Sobol(dim, seed=seed).random(n), lo, hi)
     vals = np.array([cnt(p) for p in screen])
     order = [screen[k] for k in np.argsort(vals, kind="stable") if np.isfinite(vals[k])]
-    queue = list(warm) + distinct_points(order, scale, rtol=0.1)
+    queue = list(warm) + [order[k] for k in distinct_points(order, scale, rtol=0.1)]
 
     def rfun(x):
         cnt.nfev += 1
@@ -162,12 +158,15 @@ def _confirmed(ends):
     return len(fs) >= 2 and fs[1] <= fs[0] * (1 + VP_CONFIRM_RTOL)
 
 
-def distinct_points(points, scale, rtol):
-    """``points`` (best first) without those within ``rtol`` of the box ``scale`` of an earlier one."""
+def distinct_points(points, scale, rtol, keep=None):
+    """Indices of ``points`` (best first) that are not within ``rtol`` (relative to the search box
+    ``scale``) of an earlier kept one; at most ``keep`` of them."""
     out = []
-    for x in points:
-        if all(np.max(np.abs((x - y) / scale)) > rtol for y in out):
-            out.append(x)
+    for k, x in enumerate(points):
+        if all(np.max(np.abs((x - points[j]) / scale)) > rtol for j in out):
+            out.append(k)
+            if keep is not None and len(out) >= keep:
+                break
     return out
 
 
@@ -183,7 +182,7 @@ def run_search(fun, lo, hi, method="de", seed=0, maxiter=None, popsize=None, pro
     seed : int, makes the search deterministic
     maxiter : DE generations (default 40 + 10 dim), iterations of each multistart local search
         (default 200), DIRECT evaluations (default 1500), residual evaluations of each ``vp``
-        local search in units of (dim + 1) (default 30)
+        local search besides its finite-difference Jacobians (default ``VP_MAXITER``, 20)
     popsize : DE population per dimension (default 8)
     starts : number of multistart points (default 8 + 4 dim)
     x0 : array, optional, a start point (clipped to the box): a member of DE's first population,
