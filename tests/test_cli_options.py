@@ -243,7 +243,9 @@ def test_an_axis_without_its_measured_position_is_named_not_dropped(capsys, tmp_
 
 
 def test_every_option_with_a_default_shows_it_in_help():
-    """``fdid CMD --help``: each option that has a default (not None, not a flag's False) says it."""
+    """``fdid CMD --help``: each option that takes a value and may be left out says what is used
+    then ("default: ..."), also when that is no value at all (a file not written, all detectors);
+    a required option, or one of a required choice (``--model`` / ``--fmu``), need not."""
     import argparse
 
     from fdid_fmi.cli import _command_parsers, build_parser
@@ -251,8 +253,12 @@ def test_every_option_with_a_default_shows_it_in_help():
     missing = []
     for sp in _command_parsers(parser.commands.values()):
         fmt = sp._get_formatter()
+        required = {id(a) for g in sp._mutually_exclusive_groups if g.required for a in g._group_actions}
         for action in sp._actions:
-            if not action.option_strings or action.default in (None, False, argparse.SUPPRESS):
+            if (not action.option_strings or action.required or id(action) in required
+                    or action.default is argparse.SUPPRESS):
+                continue
+            if action.nargs == 0 and action.default in (None, False):      # a flag, off unless given
                 continue
             if "default" not in fmt._format_action(action).lower():
                 missing.append(f"{sp.prog} {action.option_strings[-1]}")

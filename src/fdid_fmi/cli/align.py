@@ -43,9 +43,11 @@ def register(sub):
                    help="grid-encoder file and settings, e.g. --kgm kgm.csv cols=X,Y unit=um")
     p.add_argument("-o", "--output", required=True, help="aligned trace CSV to write")
     p.add_argument("--json", default=None, metavar="OUT.json",
-                   help="write every step's estimate and uncertainty as JSON (reusable by --orientation)")
+                   help="write every step's estimate and uncertainty as JSON (reusable by --orientation; default: "
+                        "not written)")
     p.add_argument("--orientation", default=None, metavar="CALIB.json",
-                   help="accelerometer orientations from a calibration run's --json (two axes moving)")
+                   help="accelerometer orientations from a calibration run's --json (two axes moving; default: "
+                        "estimated from this run)")
     p.add_argument("--lowpass", type=finite_float("--lowpass", positive=True), default=10.0, metavar="HZ",
                    help="low-pass of the estimation signals, below the first tool-side mode (default 10)")
     p.add_argument("--window", type=finite_float("--window", positive=True), default=1.0, metavar="S",

@@ -33,7 +33,7 @@ def register(sub):
                    help="folder for models, FMU, report (default: out/demo/virtual, out/demo/emps)")
     p.add_argument("--emps", action="store_true",
                    help="use the real EMPS data (../shared/data/emps) instead of the virtual drive")
-    p.add_argument("--data", default=None, help="folder with DATA_EMPS.mat / DATA_EMPS_PULSES.mat")
+    p.add_argument("--data", default=None, help="folder with DATA_EMPS.mat / DATA_EMPS_PULSES.mat (default: ../shared/data/emps)")
     # the search's seed (scipy / numpy legacy): 0 .. 2**32 - 1
     p.add_argument("--seed", type=int_in(0, 2 ** 32 - 1, "--seed"), default=0,
                    help="random seed of the generated traces and the search (default 0)")

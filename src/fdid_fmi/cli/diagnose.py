@@ -29,11 +29,11 @@ def register(sub):
                    help="held-out trace the keep criterion is judged on (default: the training trace is "
                         "split at the standstill nearest its middle, or at its middle without one; the first part "
                         "is fitted, the second held out)")
-    p.add_argument("--train-range", default=None, metavar="START:STOP", help="use this time range of --train [s]")
-    p.add_argument("--val-range", default=None, metavar="START:STOP", help="use this time range of --val [s]")
-    p.add_argument("-o", "--output", default=None, help="write the augmented model JSON here")
-    p.add_argument("--report", default=None, help="write the HTML report here")
-    p.add_argument("--json", default=None, help="write the JSON summary here")
+    p.add_argument("--train-range", default=None, metavar="START:STOP", help="use this time range of --train [s] (default: all of it)")
+    p.add_argument("--val-range", default=None, metavar="START:STOP", help="use this time range of --val [s] (default: all of it)")
+    p.add_argument("-o", "--output", default=None, help="write the augmented model JSON here (default: not written)")
+    p.add_argument("--report", default=None, help="write the HTML report here (default: not written)")
+    p.add_argument("--json", default=None, help="write the JSON summary here (default: not written)")
     p.add_argument("--min-gain", type=fraction("--min-gain"), default=0.05,
                    help="keep an effect only if the held-out RMS falls by at least this fraction (0.05)")
     p.add_argument("--max-loss", type=fraction("--max-loss"), default=0.01,
@@ -44,7 +44,7 @@ def register(sub):
                    help="processes running the independent refits side by side (default: one per core; "
                         "the result is the same for any number)")
     p.add_argument("--detectors", default=None,
-                   help="comma list of detector families (friction, mode, delay, periodic, coupling)")
+                   help="comma list of detector families (friction, mode, delay, periodic, coupling; default: all)")
     p.add_argument("--exclude", nargs="+", action="extend", default=[], metavar="CHANNEL",
                    help="channels never to use as inputs")
     p.add_argument("--fmu", action="store_true",

@@ -25,7 +25,7 @@ def register(sub):
     r.add_argument("manifest", help="fleet manifest (.toml or .csv)")
     r.add_argument("--out", default="fleet_out", help="output folder (default fleet_out)")
     r.add_argument("--previous", default=None, metavar="DIR",
-                   help="a previous fleet output folder: list the axes whose plant changed since")
+                   help="a previous fleet output folder: list the axes whose plant changed since (default: none)")
     r.add_argument("--scheduler", default=None, metavar="ADDR",
                    help="Dask scheduler address (tcp://host:8786); default: a local process pool")
     r.add_argument("--workers", type=int, default=None,

@@ -34,23 +34,24 @@ def register(sub):
                    help="axis limits: velocity [mm/s], acceleration [mm/s^2], jerk [mm/s^3]; without AXIS= for all axes "
                         "(default: those the model recorded from its identification traces)")
     p.add_argument("--limits-from", default=None, metavar="TRACE",
-                   help="estimate the limits from a recorded trace of the same machine")
+                   help="estimate the limits from a recorded trace of the same machine (default: the model's recorded limits)")
     p.add_argument("--commands", default=None, metavar="TRACE",
-                   help="use the controller's interpolated setpoints (cmd channels of TRACE) instead of interpolating")
+                   help="use the controller's interpolated setpoints (cmd channels of TRACE) instead of interpolating "
+                        "(default: interpolate the program)")
     p.add_argument("--corner-angle", type=float, default=None, metavar="DEG",
                    help="no stop at junctions whose tangents differ by at most DEG (default: exact stop at every block end)")
     p.add_argument("--in-position", type=finite_float("--in-position"), default=None, metavar="MM",
                    help="after every rapid (G0) the next block waits until every axis's predicted tracking "
                         "error is within MM (default 0.01: SINUMERIK's fine exact-stop window, a Fanuc "
                         "in-position width); 0: no wait")
-    p.add_argument("--tol", type=finite_float("--tol", positive=True), default=None, help="contour tolerance [mm]: blocks above it are flagged")
+    p.add_argument("--tol", type=finite_float("--tol", positive=True), default=None, help="contour tolerance [mm]: blocks above it are flagged (default: none, nothing flagged)")
     p.add_argument("--optimize", action="store_true", help="find per-block feeds within --tol (needs --tol)")
     p.add_argument("--margin", type=fraction("--margin"), default=None,
                    help="the optimised feeds aim at tol x (1 - margin), room for the twin's error (default 0.02)")
-    p.add_argument("-o", "--output", default=None, help="write the optimised NC program here")
-    p.add_argument("--report", default=None, help="HTML report")
-    p.add_argument("--json", default=None, help="JSON with every table and figure's data")
-    p.add_argument("--csv", default=None, help="commanded and predicted positions, errors per sample")
+    p.add_argument("-o", "--output", default=None, help="write the optimised NC program here (default: not written)")
+    p.add_argument("--report", default=None, help="HTML report (default: not written)")
+    p.add_argument("--json", default=None, help="JSON with every table and figure's data (default: not written)")
+    p.add_argument("--csv", default=None, help="commanded and predicted positions, errors per sample (default: not written)")
     p.add_argument("--start", default="0,0,0", help="position before the first block, x,y,z [mm]")
     from ..pipeline.traces import add_trace_arguments
     add_trace_arguments(p)

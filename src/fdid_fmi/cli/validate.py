@@ -20,7 +20,7 @@ def register(sub):
     p.add_argument("trace", help="measured trace (commanded and actual positions)")
     p.add_argument("--model", default=None,
                    help="reference model JSON (default: resources/model.json inside the FMU)")
-    p.add_argument("--json", default=None, metavar="OUT.json", help="write the results as JSON")
+    p.add_argument("--json", default=None, metavar="OUT.json", help="write the results as JSON (default: not written)")
     p.add_argument("--tolerance", type=finite_float("--tolerance", positive=True), default=1e-9,
                    help="largest accepted |FMU - reference| in mm (default 1e-9)")
     add_trace_arguments(p)

@@ -63,7 +63,7 @@ def add_identify_parser(sub):
                         "steps of each local search (default 20)")
     s.add_argument("--v-tilde", type=finite_float("--v-tilde", positive=True), default=None,
                    help="fix the friction transition velocity [mm/s] (default: searched)")
-    s.add_argument("--v-tilde-range", default=None, metavar="LO:HI", help="search range of v_tilde [mm/s]")
+    s.add_argument("--v-tilde-range", default=None, metavar="LO:HI", help="search range of v_tilde [mm/s] (default: 1e-4 to 0.3 x the axis's largest speed)")
     s.add_argument("--no-integral-action", action="store_true",
                    help="the position loop has no integral action (P/PD, e.g. EMPS): adds the 1/P(s) "
                         "friction term")
@@ -78,16 +78,16 @@ def add_identify_parser(sub):
                         "acceleration); default: identify with all three, keep the lowest training "
                         "free-run error")
     s.add_argument("--real-hz", action="append", default=None, metavar="LO:HI",
-                   help="bounds of one real pole [Hz] (repeat per pole; sets the number of real poles)")
+                   help="bounds of one real pole [Hz] (repeat per pole; sets the number of real poles; default: 0.1 Hz to 0.95 x Nyquist)")
     s.add_argument("--omega-hz", action="append", default=None, metavar="LO:HI",
-                   help="bounds of one complex pair's natural frequency [Hz] (repeat per pair)")
+                   help="bounds of one complex pair's natural frequency [Hz] (repeat per pair; default: 0.5 Hz to 0.95 x Nyquist)")
     s.add_argument("--zeta", action="append", default=None, metavar="LO:HI",
-                   help="damping bounds of each complex pair (repeat per pair, same order)")
+                   help="damping bounds of each complex pair (repeat per pair, same order; default: 0.05:2)")
     m = p.add_argument_group("mimo")
     m.add_argument("--n-real", type=int_in(0, MAX_REAL, "--n-real"), default=None,
-                   help=f"number of real poles searched (0 .. {MAX_REAL})")
+                   help=f"number of real poles searched (0 .. {MAX_REAL}; default: 1, or one per --real-hz)")
     m.add_argument("--n-complex", type=int_in(0, MAX_COMPLEX, "--n-complex"), default=None,
-                   help=f"number of complex pairs searched (0 .. {MAX_COMPLEX})")
+                   help=f"number of complex pairs searched (0 .. {MAX_COMPLEX}; default: 1, or one per --omega-hz)")
     m.add_argument("--outputs", default="error",
                    help="comma list of outputs per axis: error, velocity, position, tool_position, "
                         "tool_error, acceleration")
@@ -103,10 +103,10 @@ def add_identify_parser(sub):
                    help="use an extra trace channel as an input (e.g. pulses_N)")
     m.add_argument("--play-width", type=finite_float("--play-width", positive=True), default=None,
                    metavar="MM", help="friction law: the play (presliding) of this half-width [mm] in place "
-                                      "of sat(v/v_tilde); the structure choice tries 0.001 to 0.016 mm"),
+                                      "of sat(v/v_tilde) (default: sat; the structure choice tries 0.001 to 0.016 mm)"),
     q = p.add_argument_group("quasi-static / full-ls")
     q.add_argument("--cutoff-hz", type=finite_float("--cutoff-hz", positive=True), default=None,
-                   help="Butterworth cutoff of the derivatives")
+                   help="Butterworth cutoff of the derivatives (default: min(50 Hz, 0.2 x Nyquist))")
     q.add_argument("--filter-order", type=int_in(1, 8, "--filter-order"), default=2)
     add_trace_arguments(p)
     p.set_defaults(option_defaults={k: p.get_default(k) for k in READ_BY})
