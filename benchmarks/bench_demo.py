@@ -59,7 +59,8 @@ def main(argv=None):
             runs.append(run_timed(["identify", str(EXAMPLE), "-o", str(tmp / "r.json"), "--structure", "rigid"],
                                   tmp))
     for r in runs:       # the command as a user types it, without this run's temporary folder
-        r["command"] = r["command"].replace(str(tmp) + "/", "").replace(str(HERE.parent) + "/", "")
+        r["command"] = r["command"].replace(f" --out {tmp}/demo", "").replace(str(tmp) + "/", "") \
+            .replace(str(HERE.parent) + "/", "")
     res = {"table": summary["table"],
            "fmu_max_abs_diff_mm": {n: v["max_abs_diff_reference_mm"] for n, v in summary["validation"].items()},
            "fmu_problems": {n: v["problems"] for n, v in summary["validation"].items()},
