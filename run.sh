@@ -2,7 +2,7 @@
 # One entry point for a fresh machine (Python 3.11, gcc, apt):
 #   ./run.sh demo   set up, then trace -> identify -> FMU -> validate -> report
 #   ./run.sh test   set up, then the whole test suite
-#   ./run.sh bench  set up, then the benchmarks (JSON + table in benchmarks/results/);
+#   ./run.sh bench  set up, then the benchmarks (JSON in benchmarks/results/, pages in docs/results/);
 #                   ./run.sh bench NAME [ARGS] runs benchmarks/bench_NAME.py alone
 # Everything the project needs is installed here: the venv, the Python packages
 # and, through apt, the system packages the tests use (TBB for the ecos engine,
@@ -69,6 +69,8 @@ case "$cmd" in
         # ./run.sh bench            every benchmark with its defaults
         # ./run.sh bench NAME ARGS  one benchmark (benchmarks/bench_NAME.py) with its own options;
         #                           options differ between scripts, so they are never given to all
+        # Run with its default options a benchmark also writes its page docs/results/NAME.md
+        # (benchmarks/publish.py); then the README's results table is rebuilt from those pages.
         if [ $# -eq 0 ]; then
             for b in benchmarks/bench_*.py; do "$VENV/bin/python" "$b"; done
         elif [ -f "benchmarks/bench_$1.py" ]; then
@@ -79,6 +81,7 @@ case "$cmd" in
             echo "run.sh: no benchmark '$1'; one of: $(ls benchmarks/bench_*.py | sed 's#.*/bench_##; s#\.py$##' | tr '\n' ' ')" >&2
             exit 2
         fi
+        "$VENV/bin/python" benchmarks/readme_table.py
         ;;
     *)
         echo "usage: ./run.sh demo|test|bench [args]" >&2

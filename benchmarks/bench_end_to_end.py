@@ -28,6 +28,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 from checks import load_all  # noqa: E402
+from publish import command, publish, publishable  # noqa: E402
 from timing import cpu_s  # noqa: E402
 
 OUT = HERE / "results"
@@ -92,6 +93,9 @@ def main(argv=None):
     print()
     print("\n".join(table(rows)))
     print(f"wrote {out}")
+    if publishable(ap, args):
+        publish("end_to_end", "End-to-end checks", ["\n".join(table(rows))], command("end_to_end"),
+                json.loads(out.read_text()), notes=__doc__.split("\n\n")[0])
     return 0 if all(r["passed"] for r in rows) else 1
 
 

@@ -56,6 +56,7 @@ from fdid_fmi.diagnose.limits import NoteKind  # noqa: E402
 from fdid_fmi.diagnose.reporting import candidate_table  # noqa: E402
 from fdid_fmi.identify.choose_structure import identify_auto  # noqa: E402
 from fdid_fmi.simulate import simulate  # noqa: E402
+from publish import about, command, printed, publish, publishable  # noqa: E402
 from timing import code_state  # noqa: E402
 
 OUT = ROOT / "benchmarks" / "results"
@@ -304,12 +305,7 @@ def print_tables(res):
 
 def tables_text(res):
     """The markdown tables of :func:`print_tables` as one string."""
-    import contextlib
-    import io
-    buf = io.StringIO()
-    with contextlib.redirect_stdout(buf):
-        print_tables(res)
-    return buf.getvalue()
+    return printed(print_tables, res)
 
 
 def main(argv=None):
@@ -329,6 +325,7 @@ def main(argv=None):
                     "bench_family_diagnosis_quick.json)")
     ap.add_argument("--print-only", nargs="*", metavar="JSON", help="print the tables of earlier runs")
     args = ap.parse_args(argv)
+    pub = publishable(ap, args)
     if args.print_only is not None:
         rows = []
         for f in args.print_only or [args.out]:
@@ -366,6 +363,9 @@ def main(argv=None):
     md = path.with_suffix(".md")
     md.write_text(text + "\n")
     print(f"\nwall time {res['wall_s']:.0f} s; JSON: {path}; tables: {md}")
+    if pub:
+        publish("family_diagnosis", "Diagnosis on the seeded plant family", [text], command("family_diagnosis"),
+                res, state=res["code"], notes=about(__doc__))
 
 
 if __name__ == "__main__":

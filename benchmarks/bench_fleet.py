@@ -30,6 +30,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
+from publish import command, md_table, publish, publishable  # noqa: E402
 from timing import timed  # noqa: E402
 
 from fdid_fmi.fleet import run_fleet  # noqa: E402
@@ -75,19 +76,35 @@ def main(argv=None):
                    "the entries (each entry's stages run one after the other in one worker)"}
     OUT.parent.mkdir(parents=True, exist_ok=True)
     OUT.write_text(json.dumps(res, indent=1))
-    print(f"virtual fleet: {2 * args.machines} axes, structure {args.structure}, "
-          f"diagnosis {'on' if res['diagnose'] else 'off'}\n")
-    print("| workers | entries | wall [s] | entries/min | worker CPU [s/entry] | axes per CPU-hour | identify [s] | "
-          "export [s] | validate [s] | diagnose [s] | entry total [s] | rerun [s] (work done) |")
-    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-    for r in rows:
-        print(f"| {r['workers']} | {r['entries']} | {r['wall_s']:.1f} | {r['entries_per_min']:.1f} | "
-              f"{r['cpu_s_per_entry']:.1f} | {r['axes_per_cpu_hour'] or float('nan'):.0f} | "
-              f"{r['mean_identify_s']:.2f} | {r['mean_export_s']:.2f} | {r['mean_validate_s']:.2f} | "
-              f"{r['mean_diagnose_s']:.2f} | {r['mean_total_s']:.2f} | {r['rerun_s']:.2f} "
-              f"({r['rerun_executed']} entries) |")
-    print(f"\nresults written to {OUT}")
+    for t in tables(res):
+        print(t + "\n")
+    print(f"results written to {OUT}")
+    if publishable(ap, args):
+        publish("fleet", "Fleet throughput", tables(res), command("fleet"), res, notes=NOTES)
     return 0
+
+
+NOTES = """A virtual fleet (`fdid_fmi.fleet.virtual`: two-axis machines, half with feed-forward,
+traces of 6 linear moves of about 3 s at 1 ms), run from scratch by `fdid fleet run` on a local
+pool, each entry identified (structure chosen from the data, as `fdid identify`), exported,
+validated and diagnosed; then rerun unchanged (must do no work). Worker CPU: user + system time of
+the pool's processes; axes per CPU-hour = 3600 / worker CPU per entry. Per-stage times are means
+over the entries. The wall time depends on the CPU share the pool gets on a shared machine, the
+CPU per entry does not."""
+
+
+def tables(res):
+    """The markdown table of a run's result."""
+    return [f"{2 * res['machines']} axes, structure {res['structure']}, diagnosis "
+            f"{'on' if res['diagnose'] else 'off'}:\n\n" + md_table(
+                ["workers", "entries", "wall [s]", "entries/min", "worker CPU [s/entry]", "axes per CPU-hour",
+                 "identify [s]", "export [s]", "validate [s]", "diagnose [s]", "entry total [s]",
+                 "rerun [s] (entries run)"],
+                [[r["workers"], r["entries"], f"{r['wall_s']:.1f}", f"{r['entries_per_min']:.1f}",
+                  f"{r['cpu_s_per_entry']:.1f}", f"{r['axes_per_cpu_hour'] or float('nan'):.0f}",
+                  f"{r['mean_identify_s']:.2f}", f"{r['mean_export_s']:.2f}", f"{r['mean_validate_s']:.2f}",
+                  f"{r['mean_diagnose_s']:.2f}", f"{r['mean_total_s']:.2f}",
+                  f"{r['rerun_s']:.2f} ({r['rerun_executed']})"] for r in res["rows"]])]
 
 
 if __name__ == "__main__":

@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from publish import command, md_table, publish, publishable
+
 OUT = Path(__file__).resolve().parent / "results"
 
 
@@ -75,13 +77,22 @@ def main():
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps({"command": "fdid identify TRACE --method quasi-static",
                                        "runs": results}, indent=1))
-    print("| rows | CSV [MB] | version | peak RSS [MB] | wall [s] | CPU [s] |")
-    print("|---:|---:|---|---:|---:|---:|")
-    for r in results:
-        print(f"| {r['rows']:.0e} | {r['file_mb']:.0f} | {r['version']} | {r['peak_rss_mb']:.0f} | "
-              f"{r['wall_s']:.1f} | {r['cpu_s']:.1f} |")
+    res = json.loads(Path(a.out).read_text())
+    print(tables(res)[0])
     print(f"written {a.out}")
+    if publishable(ap, a):
+        publish("memory", "Memory of a long identification", tables(res), command("memory"), res,
+                notes="`fdid identify TRACE --method quasi-static` on a generated controller trace (time, "
+                      "commanded and measured position; 1 kHz random walk), each a fresh `fdid` process "
+                      "measured with `/usr/bin/time -v`: maximum resident set size, wall and CPU time.")
 
+
+def tables(res):
+    """The markdown table of a run's result."""
+    return [md_table(["rows", "CSV [MB]", "version", "peak RSS [MB]", "wall [s]", "CPU [s]"],
+                     [[f"{r['rows']:.0e}", f"{r['file_mb']:.0f}", r["version"], f"{r['peak_rss_mb']:.0f}",
+                       f"{r['wall_s']:.1f}", f"{r['cpu_s']:.1f}"] for r in res["runs"]],
+                     ["r", "r", "l", "r", "r", "r"])]
 
 if __name__ == "__main__":
     main()

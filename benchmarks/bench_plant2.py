@@ -60,7 +60,8 @@ from fdid_fmi.metrics import rms  # noqa: E402
 from fdid_fmi.simulate import simulate  # noqa: E402
 from plant2 import scenarios as p2  # noqa: E402
 from plant2.linear import closed_loop_pairs  # noqa: E402
-from timing import code_state, timed  # noqa: E402  (benchmarks/timing.py)
+from publish import about, command, printed, publish, publishable  # noqa: E402
+from timing import code_state, timed  # noqa: E402
 
 OUT = ROOT / "benchmarks" / "results"
 MARGIN = 1.2
@@ -392,7 +393,7 @@ def print_tables(res):
 
 
 def main():
-    ap = argparse.ArgumentParser()
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="fewer calibration seeds")
     ap.add_argument("--scenarios", default="", help="comma-separated subset of plant2 scenarios")
     ap.add_argument("--skip-identification", action="store_true")
@@ -409,6 +410,7 @@ def main():
     ap.add_argument("--print-only", nargs="*", metavar="JSON",
                     help="print the tables of earlier runs (files in benchmarks/results, merged in order)")
     args = ap.parse_args()
+    pub = publishable(ap, args)
     if args.print_only is not None:
         merged = {}
         for f in args.print_only or ["bench_plant2.json"]:
@@ -448,8 +450,12 @@ def main():
         res["calibration"] = calibration(args.quick, res["diagnosis"])
     res["wall_s"] = time.perf_counter() - t0
     save()
-    print_tables(res)
+    text = printed(print_tables, res)
+    print(text)
     print(f"\nwall time {res['wall_s']:.0f} s; JSON: {path}")
+    if pub:
+        publish("plant2", "Identification and diagnosis on plant2", [text], command("plant2"), res,
+                state=res["code"], notes=about(__doc__))
 
 
 if __name__ == "__main__":

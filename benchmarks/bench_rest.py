@@ -4,7 +4,7 @@
 Two plants that share no code: the virtual drive (``fdid_fmi.virtual``; stiction holds its axis,
 the measured encoder of 0.1 µm is what it shows) and plant2 (``tests/plant2``; LuGre friction
 with presliding, whose true motor position settles for seconds after a stop). On each, twins are
-identified from the training moves as the accuracy tables of docs/results.md do (seed 0): the rigid SISO
+identified from the training moves as in docs/results/accuracy.md (seed 0): the rigid SISO
 pole search without feed-forward, two real poles and a complex pair with it. Each twin and its
 plant then run the same commands: three linear moves (seeds 5, 6, 7), then 5 s at rest.
 
@@ -32,6 +32,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
 import plant2 as p2  # noqa: E402
+from publish import about, command, md_table, publish  # noqa: E402
 from plant2.plant import simulate_axis  # noqa: E402
 from plant2.scenarios import SCENARIOS  # noqa: E402
 
@@ -114,10 +115,21 @@ def main():
     for name, ff in (("clean_rigid", False), ("clean_rigid_2ms", False), ("clean_ff", True)):
         model, Ts, plant, ax = plant2_case(name, ff)
         cases.append(measure(f"plant2 {name}, {'r2c1' if ff else 'rigid'}", model, Ts, plant, ax))
+    res = {"rest_s": REST_S, "seeds": SEEDS, "cases": cases, "wall_s": time.perf_counter() - t0}
     OUT.parent.mkdir(parents=True, exist_ok=True)
-    OUT.write_text(json.dumps({"rest_s": REST_S, "seeds": SEEDS, "cases": cases,
-                               "wall_s": time.perf_counter() - t0}, indent=2))
+    OUT.write_text(json.dumps(res, indent=2))
     print(f"wrote {OUT} ({time.perf_counter() - t0:.0f} s)")
+    publish("rest", "At rest: twin against plant after a stop", tables(res), command("rest"), res,
+            notes=about(__doc__))
+
+
+def tables(res):
+    """The markdown table of a run's result."""
+    return [md_table(["plant, twin", "twin drift [nm/s]", "plant drift [nm/s]", "twin − plant after 5 s [µm]"],
+                     [[c["case"], " / ".join(f"{r['twin_nm_s']:.1f}" for r in c["rows"]),
+                       " / ".join(f"{r['plant_nm_s']:.1f}" for r in c["rows"]),
+                       " / ".join(f"{r['end_difference_um']:+.3f}" for r in c["rows"])] for c in res["cases"]],
+                     ["l", "r", "r", "r"])]
 
 
 if __name__ == "__main__":

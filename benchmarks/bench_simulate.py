@@ -37,6 +37,7 @@ sys.path.insert(0, str(HERE.parent / "tests"))          # the oracle and the han
 import fmu_support as fs  # noqa: E402
 from fdid_fmi.simulate import simulate  # noqa: E402
 from sim_oracle import oracle_simulate  # noqa: E402
+from publish import command, md_table, publish, publishable  # noqa: E402
 from timing import timed  # noqa: E402
 
 OUT = HERE / "results" / "bench_simulate.json"
@@ -76,17 +77,30 @@ def main():
                          python_samples_per_s=n_slow / t_py, speedup=(n_fast / t_c) / (n_slow / t_py),
                          compiled_cpu_samples_per_s=n_fast / c_c, python_cpu_samples_per_s=n_slow / c_py,
                          identical_outputs=same))
+    res = {"rows": rows, "quick": a.quick}
     OUT.parent.mkdir(parents=True, exist_ok=True)
-    OUT.write_text(json.dumps({"rows": rows}, indent=2))
-    print("| model | states | compiled core: wall / CPU [samples/s] | Python loop (test oracle): wall / CPU "
-          "[samples/s] | ratio (wall) | same doubles |")
-    print("|---|---:|---:|---:|---:|---|")
-    for r in rows:
-        print(f"| {r['case']} | {r['states']} | {r['compiled_samples_per_s'] / 1e6:.1f} M / "
-              f"{r['compiled_cpu_samples_per_s'] / 1e6:.1f} M | {r['python_samples_per_s'] / 1e3:.0f} k / "
-              f"{r['python_cpu_samples_per_s'] / 1e3:.0f} k | {r['speedup']:.0f}x | {r['identical_outputs']} |")
+    OUT.write_text(json.dumps(res, indent=2))
+    for t in tables(res):
+        print(t)
     print(f"wrote {OUT}")
+    if publishable(ap, a):
+        publish("simulate", "Simulation speed", tables(res), command("simulate"), res,
+                notes="Samples per second of the free run through `fdid_fmi.simulate.simulate` (the compiled "
+                      "core, best of 3 after a warm-up) against the pure-Python loop kept as the test oracle, "
+                      "on the same models and commands, one core (BLAS on one thread); outputs written for "
+                      "every sample. Times depend on what else runs on the machine.")
 
+
+def tables(res):
+    """The markdown table of a run's result."""
+    return [md_table(
+        ["model", "states", "compiled core: wall / CPU [samples/s]", "Python loop: wall / CPU [samples/s]",
+         "ratio (wall)", "same doubles"],
+        [[r["case"], r["states"], f"{r['compiled_samples_per_s'] / 1e6:.1f} M / "
+          f"{r['compiled_cpu_samples_per_s'] / 1e6:.1f} M", f"{r['python_samples_per_s'] / 1e3:.0f} k / "
+          f"{r['python_cpu_samples_per_s'] / 1e3:.0f} k", f"{r['speedup']:.0f}×",
+          "yes" if r["identical_outputs"] else "no"] for r in res["rows"]],
+        ["l", "r", "r", "r", "r", "l"])]
 
 if __name__ == "__main__":
     main()

@@ -1,5 +1,6 @@
 """EMPS (real data): every identifier trained on DATA_EMPS from qg and qm alone, validated on
-DATA_EMPS_PULSES. Prints the free-run position error in µm (the README table).
+DATA_EMPS_PULSES. Prints the free-run position error in µm (benchmarks/bench_emps.py measures
+these models and more for docs/results/emps.md).
 
     .venv/bin/python examples/emps_identify.py [path/to/shared/data/emps]
 """

@@ -3,8 +3,8 @@
 One kind of pool for every place that fits in parallel: ``fdid identify``'s structure choice,
 ``fdid diagnose``'s refits and the fleet's local pool. Each worker limits BLAS (and OpenMP) to
 one thread: the pool already keeps every core busy, and the models' matrices are small, so BLAS
-threads on top of it only compete for the cores (docs/results.md, "Speed and memory": 14 % less wall
-time for ``fdid diagnose --jobs 2`` on a 2-core machine). The ``fdid`` command does the same
+threads on top of it only compete for the cores (measured side by side: 14 % less wall time for
+``fdid diagnose --jobs 2`` on a 2-core machine). The ``fdid`` command does the same
 while it runs a command (its ``main``, the previous limits restored after), so
 ``--jobs 1`` and ``--jobs 2`` give the same numbers to the last bit; a Python caller's process
 keeps whatever threads it has. Dask's nanny starts its workers with one thread too (its

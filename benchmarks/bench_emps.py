@@ -1,5 +1,6 @@
-"""EMPS from `qg` / `qm` only: the pole search and a few explicit structures against an
-off-the-shelf polynomial NARX (SysIdentPy) and the published physics model.
+"""EMPS from `qg` / `qm` only: the default identification, the pole search and a few explicit
+structures against Full LS, quasi-static, an off-the-shelf polynomial NARX (SysIdentPy) and the
+published physics model.
 
 Every model is trained on DATA_EMPS with the commanded position `qg` as input and the measured
 motor position `qm` as output; nothing about the controller (law, gains, `vir`) is given to it.
@@ -11,8 +12,9 @@ Free-run position error RMS in µm:
   the validation figure; the whole PULSES record is listed too, for information only: its
   force pulses are an input none of these models is given.
 
-Models: the project's default (`identify_siso(integral_action=False)`, as in the README and
-benchmarks/bench_accuracy.py), explicit structures through `identify_mimo(mimo_structure(...,
+Models: `fdid identify DATA_EMPS.mat` (`fdid_fmi.api.identify`, the structure chosen from the
+data; also with `--search de`), the thesis's rigid SISO pole search (`identify_siso(
+integral_action=False)`, as benchmarks/bench_accuracy.py), Full LS and quasi-static, explicit structures through `identify_mimo(mimo_structure(...,
 integral_action=False))`, and a SysIdentPy FROLS polynomial NARX (degree 2, ERR ranking, number
 of terms by AIC, input and output lags chosen among LAGS by the lowest training free-run RMS;
 and a tuned one, ``TUNED``: degree 3, lags 8, 40 terms, data in metres, the best of an ad-hoc
@@ -21,13 +23,14 @@ scan that saw the validation window, so an optimistic baseline), simulated in fr
 measurement, as initial conditions). Models are simulated with
 `fdid_fmi.simulate.simulate`.
 
-    .venv/bin/pip install "sysidentpy>=0.9"     (the `bench` extra; without it the NARX rows are skipped.
-        SysIdentPy 0.9.0 pins numpy<=2.3.5 and pip downgrades numpy for it; this script's figures were
-        measured with numpy 2.4.6 put back afterwards, which SysIdentPy runs with, pip only warns)
-    .venv/bin/python benchmarks/bench_emps_baseline.py [--emps DIR] [--out FILE]
+    .venv/bin/pip install --no-deps "sysidentpy>=0.9"   (the `bench` extra; without it the NARX rows
+        are skipped. SysIdentPy 0.9.0 pins numpy<=2.3.5, and pip would downgrade numpy for it;
+        with --no-deps it runs on the numpy the project uses)
+    .venv/bin/python benchmarks/bench_emps.py [--emps DIR] [--out FILE]
 
-Writes benchmarks/results/bench_emps_baseline.json and prints a markdown table; single core
-(BLAS threads pinned to 1), a few minutes of CPU.
+Writes benchmarks/results/bench_emps.json and prints a markdown table, with the default options
+also docs/results/emps.md; single core (BLAS threads pinned to 1) except the structure choice of
+the `fdid identify` rows (two worker processes), about 10 CPU-minutes.
 """
 import os
 
@@ -37,18 +40,21 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
-import subprocess  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from fdid_fmi.identify import identify_mimo, identify_siso, mimo_structure  # noqa: E402
+from fdid_fmi.api import identify  # noqa: E402
+from fdid_fmi.identify import (identify_full_ls, identify_mimo, identify_quasi_static,  # noqa: E402
+                               identify_siso, mimo_structure)
 from fdid_fmi.io import read_trace  # noqa: E402
 from fdid_fmi.simulate import simulate  # noqa: E402
+from publish import command, md_table, publish, publishable  # noqa: E402
+from timing import code_state, cpu_s  # noqa: E402
 
-OUT = Path(__file__).resolve().parent / "results" / "bench_emps_baseline.json"
+OUT = Path(__file__).resolve().parent / "results" / "bench_emps.json"
 EMPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "emps"
 
 T_SETTLED = 0.5        # s: training figure from here on (and over the whole record)
@@ -88,23 +94,32 @@ def figures(pred_train, train, pred_quiet, quiet, pred_test, test):
             "pulses_all_um": rms_um(pred_test - test.act("x"))}
 
 
-def pole_search_rows(train, quiet, test):
-    cases = [("pole search, default (identify_siso, integral_action=False)",
-              lambda: identify_siso(train, "x", integral_action=False, seed=0), {})]
+def model_rows(train, quiet, test):
+    """The project's identifiers and baselines, each fitted on DATA_EMPS and run on every range."""
+    cases = [("`fdid identify DATA_EMPS.mat` (structure chosen)", "default",
+              lambda: identify(train, "pole-search", seed=0), {}),
+             ("`fdid identify DATA_EMPS.mat --search de` (structure chosen, global search)", "default",
+              lambda: identify(train, "pole-search", seed=0, search="de"), {}),
+             ("pole search, rigid, no integral action (identify_siso)", "pole search",
+              lambda: identify_siso(train, "x", integral_action=False, seed=0), {}),
+             ("Full LS (constrained, Eqn 4.9)", "baseline", lambda: identify_full_ls(train, "x"), {}),
+             ("quasi-static", "baseline", lambda: identify_quasi_static(train), {})]
     for name, kw in STRUCTURES:
-        cases.append((name, lambda kw=kw: identify_mimo(
+        cases.append((name, "pole search", lambda kw=kw: identify_mimo(
             train, mimo_structure(("x",), integral_action=False, **kw), seed=0), kw))
     rows = []
-    for name, fit, kw in cases:
-        c0 = time.process_time()
+    for name, kind, fit, kw in cases:
+        c0, w0 = cpu_s(), time.perf_counter()
         m = fit()
-        cpu = time.process_time() - c0
+        cpu, wall = cpu_s() - c0, time.perf_counter() - w0
         pos = {k: simulate(m, tr).axes["x"]["position"] for k, tr in
                (("train", train), ("quiet", quiet), ("test", test))}
-        ident = m.identification
-        rows.append({"model": name, "kind": "pole search", "structure": {k: list(v) if isinstance(v, tuple)
-                                                                         else v for k, v in kw.items()},
-                     "fit_cpu_s": cpu,
+        ident = getattr(m, "identification", None) or {}
+        choice = ident.get("structure_choice") or {}
+        rows.append({"model": name, "kind": kind, "structure": {k: list(v) if isinstance(v, tuple)
+                                                                else v for k, v in kw.items()},
+                     "chosen": " ".join(str(choice[k]) for k in ("chosen", "same_sample") if choice.get(k)),
+                     "fit_cpu_s": cpu, "fit_wall_s": wall,
                      "real_hz": [float(p) for p in ident.get("real_hz", [])],
                      "complex_hz_zeta": [[float(a) for a in p] for p in ident.get("complex_hz_zeta", [])],
                      "v_tilde_mm_s": ident.get("v_tilde_mm_s"),
@@ -191,18 +206,6 @@ def _term(code):
     return f"y(k-{code - 1000})" if code < 2000 else f"qg(k-{code - 2000})"
 
 
-def _provenance():
-    """Commit and locally changed source files of the checkout the figures were measured in."""
-    root = Path(__file__).resolve().parents[1]
-    try:
-        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True).stdout
-        dirty = subprocess.run(["git", "status", "--short", "src"], cwd=root, capture_output=True,
-                               text=True).stdout
-    except OSError:
-        return {}
-    return {"commit": head.strip(), "src_changes": dirty.splitlines()}
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--emps", type=Path, default=EMPS, help="folder with DATA_EMPS.mat, DATA_EMPS_PULSES.mat")
@@ -211,9 +214,9 @@ def main():
     train = read_trace(a.emps / "DATA_EMPS.mat")
     test = read_trace(a.emps / "DATA_EMPS_PULSES.mat")
     quiet = test.slice(0, T_FIRST_PULSE)
-    prov = _provenance()      # before the fits: the checkout the identification code came from
+    state = code_state()      # before the fits: the code the figures belong to
     c0, w0 = time.process_time(), time.perf_counter()
-    rows = pole_search_rows(train, quiet, test)
+    rows = model_rows(train, quiet, test)
     narx, settings = narx_rows(train, quiet, test)
     rows += narx
     res = {"published_um": PUBLISHED_UM, "ranges": {
@@ -222,20 +225,45 @@ def main():
                "pulses_all": "DATA_EMPS_PULSES, whole record (force pulses unknown to every model here)"},
            "rows": rows, "narx_settings": settings, "cpu_s": time.process_time() - c0,
            "wall_s": time.perf_counter() - w0, "python": platform.python_version(),
-           "numpy": np.__version__, **prov}
+           "numpy": np.__version__, "code": state}
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text(json.dumps(res, indent=1))
-    print("\n| model (trained on DATA_EMPS, qg → qm) | DATA_EMPS whole [µm] | DATA_EMPS t ≥ 0.5 s [µm] "
-          "| PULSES t ≤ 0.34 s [µm] | PULSES whole (pulses unknown) [µm] | fit CPU [s] |")
-    print("|---|---:|---:|---:|---:|---:|")
-    for r in rows:
-        name = r["model"] + (f" [{r['same_sample']}]" if r.get("same_sample") else "")
-        print(f"| {name} | {r['train_all_um']:.2f} | {r['train_from_0.5s_um']:.2f} | "
-              f"{r['pulses_before_1st_um']:.2f} | {r['pulses_all_um']:.1f} | {r['fit_cpu_s']:.1f} |")
-    print(f"| published physics model (needs controller law and gains) | ≈ {PUBLISHED_UM['train']} | | "
-          f"| ≈ {PUBLISHED_UM['test']} (pulses known) | |")
-    print(f"\nCPU {res['cpu_s']:.0f} s, wall {res['wall_s']:.0f} s; written {a.out}")
+    print()
+    for t in tables(res):
+        print(t + "\n")
+    print(f"CPU {res['cpu_s']:.0f} s, wall {res['wall_s']:.0f} s; written {a.out}")
+    if publishable(ap, a):
+        publish("emps", "EMPS (real data): accuracy against baselines and a peer", tables(res), command("emps"),
+                res, state=state, notes=NOTES)
 
+
+NOTES = """Every model is trained on DATA_EMPS with the commanded position `qg` as input and the
+measured motor position `qm` as output; nothing about the controller (law, gains, `vir`) is given
+to it. Free-run position error RMS in µm over DATA_EMPS (the training record) whole and from
+t ≥ 0.5 s, and over DATA_EMPS_PULSES before its first force pulse (t ≤ 0.34 s), the validation
+figure. The whole PULSES record carries a 1 Hz square force disturbance a model driven by `qg`
+alone cannot know (`fdid diagnose` finds the unused `pulses_N` channel and adds it); its column is
+for information. Fit: identification time in s, wall / CPU (the process and its workers). The NARX
+rows: SysIdentPy FROLS polynomial NARX in free run; the tuned one was picked with the validation
+window in view, an optimistic baseline. The published physics model needs the controller law and
+gains (its test figure covers the whole PULSES record, the force known)."""
+
+
+def tables(res):
+    """The markdown table of a run's result."""
+    rows = []
+    for r in res["rows"]:
+        name = r["model"] + (f" → {r['chosen']}" if r.get("chosen") else
+                             f" [{r['same_sample']}]" if r.get("same_sample") else "")
+        fit = (f"{r['fit_wall_s']:.1f} / {r['fit_cpu_s']:.1f}" if r.get("fit_wall_s") is not None
+               else f"— / {r['fit_cpu_s']:.1f}")
+        rows.append([name, f"{r['train_all_um']:.2f}", f"{r['train_from_0.5s_um']:.2f}",
+                     f"{r['pulses_before_1st_um']:.2f}", f"{r['pulses_all_um']:.1f}", fit])
+    pub = res["published_um"]
+    rows.append(["published physics model (needs the controller law and gains)", f"≈ {pub['train']}", "", "",
+                 f"≈ {pub['test']} (force known)", ""])
+    return [md_table(["model (trained on DATA_EMPS, qg → qm)", "DATA_EMPS whole", "DATA_EMPS t ≥ 0.5 s",
+                      "PULSES t ≤ 0.34 s", "PULSES whole (force unknown)", "fit wall / CPU [s]"], rows)]
 
 if __name__ == "__main__":
     main()
