@@ -66,6 +66,10 @@ case "$cmd" in
         ;;
     bench)
         setup test
+        # the peer of the EMPS page (a SysIdentPy NARX); its release pins an older numpy than the
+        # project's, and its own dependencies (numpy, scipy, matplotlib) are installed already
+        "$VENV/bin/python" -c "import sysidentpy" 2>/dev/null ||
+            "$VENV/bin/python" -m pip install -q --no-deps "sysidentpy>=0.9"
         # ./run.sh bench            every benchmark with its defaults
         # ./run.sh bench NAME ARGS  one benchmark (benchmarks/bench_NAME.py) with its own options;
         #                           options differ between scripts, so they are never given to all

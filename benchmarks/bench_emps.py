@@ -23,10 +23,11 @@ scan that saw the validation window, so an optimistic baseline), simulated in fr
 measurement, as initial conditions). Models are simulated with
 `fdid_fmi.simulate.simulate`.
 
-    .venv/bin/pip install --no-deps "sysidentpy>=0.9"   (the `bench` extra; without it the NARX rows
-        are skipped. SysIdentPy 0.9.0 pins numpy<=2.3.5, and pip would downgrade numpy for it;
-        with --no-deps it runs on the numpy the project uses)
-    .venv/bin/python benchmarks/bench_emps.py [--emps DIR] [--out FILE]
+    ./run.sh bench emps [--emps DIR] [--out FILE]
+
+``./run.sh bench`` installs SysIdentPy with ``pip install --no-deps`` (SysIdentPy 0.9.0 pins
+numpy<=2.3.5, and pip would downgrade numpy for it; with --no-deps it runs on the project's
+numpy); run directly with ``.venv/bin/python`` and without it, the NARX rows are skipped.
 
 Writes benchmarks/results/bench_emps.json and prints a markdown table, with the default options
 also docs/results/emps.md; single core (BLAS threads pinned to 1) except the structure choice of
