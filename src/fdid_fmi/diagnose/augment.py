@@ -271,7 +271,7 @@ def model_velocity_traces(model: DriveModel, traces):
 
 
 def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, refine=True,
-        from_current=False, polish=True) -> DriveModel:
+        from_current=False, select=True) -> DriveModel:
     """Refit a recipe on training traces with the pole-search engine (see module docstring).
 
     ``traces`` should carry the velocity the features are to see (:func:`model_velocity_traces`).
@@ -279,8 +279,8 @@ def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, r
     (``search.run_search``: residual evaluations of each ``vp`` local search, generations and
     population of ``de``).
     ``refine``: the engine's simulation-consistent friction refinement (off for quick screening).
-    ``polish``: the ``vp`` search's free-run polish (``identify_mimo``; off where only the LS
-    objective is read).
+    ``select``: the engine's pick by training free run among near-best minima, with ``vp`` its
+    free-run polish (``identify_mimo``; off where only the LS objective is read).
     ``from_current``: start the search from the recipe's poles (new pairs: the middle of their
     bounds), so that the search ends no worse in the LS objective than that start.
 
@@ -300,7 +300,7 @@ def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, r
         warnings.simplefilter("ignore", RuntimeWarning)
         model = identify_mimo(shifted_traces(recipe, traces), st, bounds=bounds,
                               v_tilde=dict(recipe.v_tilde), method=recipe.method, seed=seed, maxiter=maxiter,
-                              popsize=popsize, refine=refine, polish=polish,
+                              popsize=popsize, refine=refine, select=select,
                               start=_start(recipe) if from_current and search != "locked" else None)
     model.method = "pole-search+diagnose"
     for a, d in recipe.delays.items():
@@ -318,13 +318,13 @@ def fit_objective(recipe: Recipe, traces, **kw):
     pole search finds no feasible model there (``identify_mimo`` raises InputError).
 
     Under ``vp`` a local scan point's search starts from the recipe's poles (``from_current``,
-    unless given) and skips the free-run polish: the scan reads differences of the LS objective
-    between neighbouring parameter values, which searches from one start read without the
-    scatter of where searches from a screen end, and which the polish, a walk to a lower free run
-    at a higher objective, only blurs.
+    unless given) and its best LS minimum is the result (``select`` off): the scan reads
+    differences of the LS objective between neighbouring parameter values, which searches from
+    one start read without the scatter of where searches from a screen end, and which the pick
+    by free run and the polish, at a higher objective, only blur.
     """
     if recipe.method == "vp":
-        kw = {"from_current": True, "polish": False, **kw}
+        kw = {"from_current": True, "select": False, **kw}
     try:
         return fit(recipe, traces, **kw).metrics["objective_scaled_rms"]
     except InputError:
