@@ -37,7 +37,9 @@ in a fresh subprocess per version, the versions alternating which runs first, an
 per scenario and version the diagnosis's wall and CPU seconds (its worker processes included),
 what it named and the held-out RMS before and after, with the CPU ratio new / old. ``--search S``
 / ``--other-search S`` pass ``search=S`` to ``diagnose`` of this / the other run (for code that
-has that option; with ``--other-search`` alone the other run uses this interpreter).
+has that option; with ``--other-search`` alone the other run uses this interpreter). Both
+versions diagnose the same base model: the first run of a scenario identifies it (this tree's
+script with that version's package) and writes it to a temporary folder, the second reads it.
 Identification and calibration are not run then; the other version's diagnoses are written
 under ``diagnosis_other``.
 """
@@ -49,6 +51,7 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
 import traceback  # noqa: E402
 import warnings  # noqa: E402
@@ -196,18 +199,26 @@ def detector_statistics(model, tr):
     return _max_by_kind(cands)
 
 
-def base_model(tr, ax, base):
-    """The model diagnosed, the options ``diagnose`` gets, and the chosen structure's poles."""
+def base_model(tr, ax, base, path=None):
+    """The model diagnosed, the options ``diagnose`` gets, and the chosen structure's poles.
+    ``path``: a model file to read when it exists, else where the identified model is written
+    (the side-by-side run's versions diagnose the same model)."""
+    from fdid_fmi.model import load_model
+    if path and Path(path).is_file():
+        m = load_model(path)
+    else:
+        m = identify_siso(tr, ax, maxiter=30, seed=0) if base == "thesis" else identify_auto(tr, ax, seed=0, workers=2)
+        if path:
+            m.save(path)
     if base == "thesis":
-        return identify_siso(tr, ax, maxiter=30, seed=0), {"maxiter": 20}, {}
-    m = identify_auto(tr, ax, seed=0, workers=2)
+        return m, {"maxiter": 20}, {}
     choice = StructureChoice.from_dict(m.identification["structure_choice"])
     c = next(c for c in choice.candidates if c.chosen)
     return m, {}, {"structure": f"{c.label} {c.same_sample}", "complex_hz_zeta": c.complex_hz_zeta,
                    "real_hz": c.real_hz}
 
 
-def diagnosis(name, base="thesis", no_val=False, jobs=1, search=None):
+def diagnosis(name, base="thesis", no_val=False, jobs=1, search=None, model_path=None):
     train, vals, truth = p2.scenario(name)
     ax = truth["axis"]
     tr = train[0]
@@ -222,7 +233,7 @@ def diagnosis(name, base="thesis", no_val=False, jobs=1, search=None):
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            m, options, out["model"] = base_model(tr, ax, base)
+            m, options, out["model"] = base_model(tr, ax, base, model_path)
             if search:
                 options["search"] = search
             c0 = cpu_s()
@@ -465,6 +476,7 @@ def main():
                     help="another version's python: its diagnoses side by side with this one's")
     ap.add_argument("--other-search", default=None, help="search= passed to the other run's diagnose")
     ap.add_argument("--child", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--base-model", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--out", default="bench_plant2.json", help="file name in benchmarks/results")
     ap.add_argument("--print-only", nargs="*", metavar="JSON",
                     help="print the tables of earlier runs (files in benchmarks/results, merged in order)")
@@ -482,8 +494,8 @@ def main():
         print_tables(merged)
         return
     if args.child:      # one diagnosis, as a JSON line (the side-by-side run's subprocess)
-        print(json.dumps(diagnosis(args.child, args.diagnose_base, args.no_val, args.jobs, args.search),
-                         default=float))
+        print(json.dumps(diagnosis(args.child, args.diagnose_base, args.no_val, args.jobs, args.search,
+                                   args.base_model), default=float))
         return
     names = [s for s in args.scenarios.split(",") if s] or list(p2.SCENARIOS)
     OUT.mkdir(parents=True, exist_ok=True)
@@ -504,11 +516,13 @@ def main():
         res["runs"] = {k: f"{p}{' search=' + s if s else ''}" for k, (p, s) in runs.items()}
         res["diagnosis_other"] = []
         flags = ["--diagnose-base", args.diagnose_base, "--jobs", str(args.jobs)] + ["--no-val"] * args.no_val
+        shared = Path(tempfile.mkdtemp(prefix="bench-plant2-"))     # the base models both versions diagnose
         for i, name in enumerate(names):
             for key in (["old", "new"] if i % 2 == 0 else ["new", "old"]):     # alternate which runs first
                 python, search = runs[key]
                 d = child_json(python, Path(__file__).resolve(),
-                               ["--child", name, *flags] + (["--search", search] if search else []))
+                               ["--child", name, *flags, "--base-model", str(shared / f"{name}.json")]
+                               + (["--search", search] if search else []))
                 d.setdefault("scenario", name)
                 (res["diagnosis"] if key == "new" else res["diagnosis_other"]).append(d)
                 print(f"[{name}] {key}: " + (f"FAILED {d['error']}" if "error" in d else
