@@ -32,13 +32,12 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from publish import command, publish, publishable  # noqa: E402  (benchmarks/, beside this script)
-from timing import code_state, cpu_s  # noqa: E402
+from timing import child_json, code_state, cpu_s  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -92,11 +91,8 @@ def child(name, search):
 
 # ------------------------------------------------------------------ parent
 def run_one(python, name, search):
-    cmd = [python, str(Path(__file__).resolve()), "--child", name] + (["--search", search] if search else [])
-    p = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
-    if p.returncode != 0:
-        return {"trace": name, "error": (p.stderr.strip().splitlines() or ["?"])[-1][:300]}
-    return json.loads(p.stdout.strip().splitlines()[-1])
+    r = child_json(python, Path(__file__).resolve(), ["--child", name] + (["--search", search] if search else []))
+    return {"trace": name, **r} if "error" in r else r
 
 
 def _ratio(a, b):

@@ -11,7 +11,17 @@ must give the same diagnosis (its JSON summary without the wall time, and the fi
 matrices): a difference is reported and the script exits with status 1. The model before and
 after is exported as an FMU and run through fmpy on the held-out trace (``fmu_check``).
 
-    .venv/bin/python benchmarks/bench_diagnose.py [--workers N] [--scenarios a,b,...]
+    .venv/bin/python benchmarks/bench_diagnose.py [--workers N] [--scenarios a,b,...] [--search S]
+    .venv/bin/python benchmarks/bench_diagnose.py --other /path/to/old/.venv/bin/python [--search S]
+        [--other-search S] [--workers N] [--scenarios a,b,...] [--out NAME.json]
+
+``--other PYTHON``: this version against another version's interpreter (its installed fdid_fmi)
+instead of one worker against many: each scenario is identified and diagnosed with ``--workers``
+once per version, in a fresh subprocess, the versions alternating which runs first; the table
+gives per scenario and version the diagnosis's wall and CPU seconds, what it named and the held-out
+RMS before and after, with the CPU ratio new / old. ``--search S`` / ``--other-search S`` pass
+``search=S`` to ``diagnose`` of this / the other run (for code that has that option). Writes
+benchmarks/results/bench_diagnose_other.json unless ``--out`` says otherwise.
 
 Writes benchmarks/results/bench_diagnose.json and prints the tables: effects named with their
 fitted parameters, RMS before and after, wall time and CPU time (this process and its finished
@@ -38,7 +48,7 @@ from fdid_fmi.diagnose.scenarios import INTEGRAL_ACTION, scenario  # noqa: E402
 from fdid_fmi.identify import identify_siso  # noqa: E402
 from fdid_fmi.io import read_trace  # noqa: E402
 from publish import command, md_table, publish, publishable  # noqa: E402  (benchmarks/, beside this script)
-from timing import cpu_s  # noqa: E402
+from timing import child_json, code_state, cpu_s  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / "results" / "bench_diagnose.json"
 EMPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "emps"
@@ -57,9 +67,9 @@ def case(name):
     return identify_siso(tr, axis="x", maxiter=30, integral_action=INTEGRAL_ACTION.get(name, True)), tr, va
 
 
-def run(model, tr, va, workers):
+def run(model, tr, va, workers, search=None):
     t0, c0 = time.perf_counter(), cpu_s()
-    d = diagnose(model, tr, va, maxiter=20, workers=workers)
+    d = diagnose(model, tr, va, maxiter=20, workers=workers, **({"search": search} if search else {}))
     wall, cpu = time.perf_counter() - t0, cpu_s() - c0
     summary = d.to_json()
     summary.pop("wall_time_s")
@@ -86,11 +96,76 @@ def change(d, trace, key="rms_um"):
     return " / ".join(f"{d.before[trace][c][key]:.3g} → {d.after[trace][c][key]:.3g}" for c in d.before["val"])
 
 
+def child(name, workers, search):
+    """Identify and diagnose one scenario with ``workers``; print one JSON line."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m, tr, va = case(name)
+        wall, cpu, _, d = run(m, tr, va, workers, search)
+    print(json.dumps({"scenario": name, "wall_s": wall, "cpu_s": cpu,
+                      "effects": [e["kind"] for e in d.effects_added],
+                      "notes": [f"{n.kind.value}: {n.effect}" for n in d.notes],
+                      "before_val": d.before["val"], "after_val": d.after["val"]}, default=float))
+
+
+def side_by_side(args):
+    """The scenarios diagnosed by this and the other version (module docstring); exit status 0."""
+    runs = {"new": (sys.executable, args.search), "old": (args.other or sys.executable, args.other_search)}
+    res = {"runs": {k: f"{p}{' search=' + s if s else ''}" for k, (p, s) in runs.items()}, "code": code_state(),
+           "workers": args.workers, "cpu_count": os.cpu_count(), "scenarios": {}}
+    out = OUT.parent / (args.out or "bench_diagnose_other.json")
+    for i, name in enumerate(args.scenarios.split(",")):
+        res["scenarios"][name] = {}
+        for key in (["old", "new"] if i % 2 == 0 else ["new", "old"]):     # alternate which runs first
+            python, search = runs[key]
+            r = child_json(python, Path(__file__).resolve(), ["--child", name, "--workers", str(args.workers)]
+                           + (["--search", search] if search else []))
+            res["scenarios"][name][key] = r
+            print(f"[{name}] {key}: " + (f"FAILED {r['error']}" if "error" in r else
+                                         f"{r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} CPU-s, {r['effects']}"), flush=True)
+        out.parent.mkdir(exist_ok=True)
+        out.write_text(json.dumps(res, indent=1))
+    print("\n".join(f"- {k}: {v}" for k, v in res["runs"].items()))
+    print("\n| scenario | run | wall s | CPU s | named | held-out RMS before → after [µm] | CPU new / old |")
+    print("|---|---|---:|---:|---|---|---:|")
+    tot = {"old": [0.0, 0.0], "new": [0.0, 0.0]}
+    for name, rr in res["scenarios"].items():
+        for key in ("old", "new"):
+            r = rr[key]
+            if "error" in r:
+                print(f"| {name} | {key} | | | FAILED: {r['error']} | | |")
+                continue
+            tot[key][0] += r["wall_s"]
+            tot[key][1] += r["cpu_s"]
+            chans = " ".join(f"{ch}: {r['before_val'][ch]['rms_um']:.3g} → {r['after_val'][ch]['rms_um']:.3g}"
+                             for ch in r["before_val"])
+            o = rr["old"]
+            ratio = f"{r['cpu_s'] / o['cpu_s']:.2f}" if key == "new" and "error" not in o and o["cpu_s"] else ""
+            print(f"| {name} | {key} | {r['wall_s']:.1f} | {r['cpu_s']:.1f} | {', '.join(r['effects']) or 'none'} "
+                  f"| {chans} | {ratio} |")
+    for key in ("old", "new"):
+        ratio = f"{tot['new'][1] / tot['old'][1]:.2f}" if key == "new" and tot["old"][1] else ""
+        print(f"| all | {key} | {tot[key][0]:.1f} | {tot[key][1]:.1f} | | | {ratio} |")
+    print(f"wrote {out}")
+    return 0
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--scenarios", default=",".join(SCENARIOS))
+    ap.add_argument("--search", default=None, help="search= passed to this run's diagnose")
+    ap.add_argument("--other", default=None, metavar="PYTHON",
+                    help="another version's python: its diagnoses side by side with this one's")
+    ap.add_argument("--other-search", default=None, help="search= passed to the other run's diagnose")
+    ap.add_argument("--out", default=None, help="file name in benchmarks/results (side-by-side run)")
+    ap.add_argument("--child", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.child:
+        child(args.child, args.workers, args.search)
+        return 0
+    if args.other or args.other_search:
+        return side_by_side(args)
     rows, ok = [], True
     for name in args.scenarios.split(","):
         if name == "emps" and not (EMPS / "DATA_EMPS.mat").is_file():
@@ -99,7 +174,7 @@ def main(argv=None):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             m, tr, va = case(name)
-            one, many = run(m, tr, va, 1), run(m, tr, va, args.workers)
+            one, many = run(m, tr, va, 1, args.search), run(m, tr, va, args.workers, args.search)
             fmu = fmu_check(many[3])
         d = one[3]
         rows.append({"scenario": name, "effects": [e["kind"] for e in d.effects_added],

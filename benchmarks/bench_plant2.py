@@ -28,6 +28,20 @@ processes.
     .venv/bin/python benchmarks/bench_plant2.py [--quick] [--scenarios a,b] [--skip-identification]
         [--skip-diagnose] [--skip-calibration] [--diagnose-base thesis|default] [--jobs N] [--out NAME.json]
     .venv/bin/python benchmarks/bench_plant2.py --print-only bench_plant2.json bench_plant2_diagnosis.json
+    .venv/bin/python benchmarks/bench_plant2.py --skip-identification --diagnose-base default \
+        --other /path/to/old/.venv/bin/python [--search S] [--other-search S] [--jobs N]
+
+``--other PYTHON``: the diagnoses side by side with another version's interpreter (its installed
+fdid_fmi; this script and the plant2 scenarios are this tree's): every scenario's diagnosis runs
+in a fresh subprocess per version, the versions alternating which runs first, and a table gives
+per scenario and version the diagnosis's wall and CPU seconds (its worker processes included),
+what it named and the held-out RMS before and after, with the CPU ratio new / old. ``--search S``
+/ ``--other-search S`` pass ``search=S`` to ``diagnose`` of this / the other run (for code that
+has that option; with ``--other-search`` alone the other run uses this interpreter). Both
+versions diagnose the same base model: the first run of a scenario identifies it (this tree's
+script with that version's package) and writes it to a temporary folder, the second reads it.
+Identification and calibration are not run then; the other version's diagnoses are written
+under ``diagnosis_other``.
 """
 import os
 
@@ -37,6 +51,7 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
 import traceback  # noqa: E402
 import warnings  # noqa: E402
@@ -61,7 +76,7 @@ from fdid_fmi.simulate import simulate  # noqa: E402
 from plant2 import scenarios as p2  # noqa: E402
 from plant2.linear import closed_loop_pairs  # noqa: E402
 from publish import about, command, printed, publish, publishable  # noqa: E402
-from timing import code_state, timed  # noqa: E402
+from timing import child_json, code_state, cpu_s, timed  # noqa: E402  (benchmarks/timing.py)
 
 OUT = ROOT / "benchmarks" / "results"
 MARGIN = 1.2
@@ -185,18 +200,26 @@ def detector_statistics(model, tr):
     return _max_by_kind(cands)
 
 
-def base_model(tr, ax, base):
-    """The model diagnosed, the options ``diagnose`` gets, and the chosen structure's poles."""
+def base_model(tr, ax, base, path=None):
+    """The model diagnosed, the options ``diagnose`` gets, and the chosen structure's poles.
+    ``path``: a model file to read when it exists, else where the identified model is written
+    (the side-by-side run's versions diagnose the same model)."""
+    from fdid_fmi.model import load_model
+    if path and Path(path).is_file():
+        m = load_model(path)
+    else:
+        m = identify_siso(tr, ax, maxiter=30, seed=0) if base == "thesis" else identify_auto(tr, ax, seed=0, workers=2)
+        if path:
+            m.save(path)
     if base == "thesis":
-        return identify_siso(tr, ax, maxiter=30, seed=0), {"maxiter": 20}, {}
-    m = identify_auto(tr, ax, seed=0, workers=2)
+        return m, {"maxiter": 20}, {}
     choice = StructureChoice.from_dict(m.identification["structure_choice"])
     c = next(c for c in choice.candidates if c.chosen)
     return m, {}, {"structure": f"{c.label} {c.same_sample}", "complex_hz_zeta": c.complex_hz_zeta,
                    "real_hz": c.real_hz}
 
 
-def diagnosis(name, base="thesis", no_val=False, jobs=1):
+def diagnosis(name, base="thesis", no_val=False, jobs=1, search=None, model_path=None):
     train, vals, truth = p2.scenario(name)
     ax = truth["axis"]
     tr = train[0]
@@ -211,8 +234,12 @@ def diagnosis(name, base="thesis", no_val=False, jobs=1):
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            m, options, out["model"] = base_model(tr, ax, base)
+            m, options, out["model"] = base_model(tr, ax, base, model_path)
+            if search:
+                options["search"] = search
+            c0 = cpu_s()
             t, d = timed(lambda: diagnose(m, tr, va, workers=jobs, **options))
+            out["cpu_s"] = cpu_s() - c0     # with the worker processes (shut down when it returns)
     except Exception as exc:
         out["error"] = _err(exc)
         traceback.print_exc()
@@ -392,6 +419,45 @@ def print_tables(res):
                   f"{cell(row, 'plant2->virtual:recalibrated')} |")
 
 
+def _named(d):
+    """What a diagnosis named, in words (kinds, suspected effects, notes)."""
+    words = ", ".join(e["kind"] for e in d["named"]) or "none"
+    if d.get("suspected"):
+        words += " (suspected: " + ", ".join(d["suspected"]) + ")"
+    if d.get("carried_lost_motion_um"):
+        words += " (carried lost motion)"
+    return words
+
+
+def side_by_side(res):
+    """Markdown lines: per scenario the other (old) and this (new) version's diagnosis."""
+    lines = ["| scenario | truth | run | wall s | CPU s | named | held-out RMS before → after [µm] | right? | "
+             "CPU new / old |", "|---|---|---|---:|---:|---|---|---|---:|"]
+    old = {d["scenario"]: d for d in res.get("diagnosis_other", [])}
+    tot = {"old": [0.0, 0.0], "new": [0.0, 0.0]}
+    for new in res["diagnosis"]:
+        for key, d in (("old", old.get(new["scenario"])), ("new", new)):
+            if d is None:
+                continue
+            if "error" in d:
+                lines.append(f"| {d['scenario']} | {d.get('truth') or 'none'} | {key} | | | error: {d['error']} | | no | |")
+                continue
+            tot[key][0] += d["wall_s"]
+            tot[key][1] += d["cpu_s"]
+            chans = " ".join(f"{ch}: {d['before_val'][ch]['rms_um']:.3g} → {d['after_val'][ch]['rms_um']:.3g}"
+                             for ch in d["before_val"])
+            o = old.get(d["scenario"])
+            ratio = (f"{d['cpu_s'] / o['cpu_s']:.2f}" if key == "new" and o and "error" not in o and o["cpu_s"]
+                     else "")
+            lines.append(f"| {d['scenario']} | {d.get('truth') or 'none'} | {key} | {d['wall_s']:.1f} | "
+                         f"{d['cpu_s']:.1f} | {_named(d)} | {chans} | {_verdict(d)} | {ratio} |")
+    if tot["old"][1]:
+        lines.append(f"| all | | old | {tot['old'][0]:.1f} | {tot['old'][1]:.1f} | | | | |")
+    lines.append(f"| all | | new | {tot['new'][0]:.1f} | {tot['new'][1]:.1f} | | | | "
+                 + (f"{tot['new'][1] / tot['old'][1]:.2f}" if tot["old"][1] else "") + " |")
+    return lines
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="fewer calibration seeds")
@@ -406,6 +472,12 @@ def main():
     ap.add_argument("--jobs", type=int, default=1,
                     help="processes of each diagnosis's refits (diagnose(workers=N)); the same diagnosis "
                          "for any number, to the last bit when BLAS runs one thread (OPENBLAS_NUM_THREADS=1)")
+    ap.add_argument("--search", default=None, help="search= passed to this run's diagnose")
+    ap.add_argument("--other", default=None, metavar="PYTHON",
+                    help="another version's python: its diagnoses side by side with this one's")
+    ap.add_argument("--other-search", default=None, help="search= passed to the other run's diagnose")
+    ap.add_argument("--child", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--base-model", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--out", default="bench_plant2.json", help="file name in benchmarks/results")
     ap.add_argument("--print-only", nargs="*", metavar="JSON",
                     help="print the tables of earlier runs (files in benchmarks/results, merged in order)")
@@ -423,6 +495,10 @@ def main():
                     merged[k] = val
         print_tables(merged)
         return
+    if args.child:      # one diagnosis, as a JSON line (the side-by-side run's subprocess)
+        print(json.dumps(diagnosis(args.child, args.diagnose_base, args.no_val, args.jobs, args.search,
+                                   args.base_model), default=float))
+        return
     names = [s for s in args.scenarios.split(",") if s] or list(p2.SCENARIOS)
     OUT.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -437,6 +513,30 @@ def main():
     def save():                                   # partial results survive an interrupted run
         path.write_text(json.dumps(res, indent=1, default=float))
 
+    if args.other or args.other_search:
+        runs = {"new": (sys.executable, args.search), "old": (args.other or sys.executable, args.other_search)}
+        res["runs"] = {k: f"{p}{' search=' + s if s else ''}" for k, (p, s) in runs.items()}
+        res["diagnosis_other"] = []
+        flags = ["--diagnose-base", args.diagnose_base, "--jobs", str(args.jobs)] + ["--no-val"] * args.no_val
+        shared = Path(tempfile.mkdtemp(prefix="bench-plant2-"))     # the base models both versions diagnose
+        for i, name in enumerate(names):
+            for key in (["old", "new"] if i % 2 == 0 else ["new", "old"]):     # alternate which runs first
+                python, search = runs[key]
+                d = child_json(python, Path(__file__).resolve(),
+                               ["--child", name, *flags, "--base-model", str(shared / f"{name}.json")]
+                               + (["--search", search] if search else []))
+                d.setdefault("scenario", name)
+                (res["diagnosis"] if key == "new" else res["diagnosis_other"]).append(d)
+                print(f"[{name}] {key}: " + (f"FAILED {d['error']}" if "error" in d else
+                                             f"{d['wall_s']:.1f} s wall, {d['cpu_s']:.1f} CPU-s, {_named(d)}"),
+                      flush=True)
+                save()
+        res["wall_s"] = time.perf_counter() - t0
+        save()
+        print("\n".join(f"- {k}: {v}" for k, v in res["runs"].items()))
+        print("\n".join(side_by_side(res)))
+        print(f"\nwall time {res['wall_s']:.0f} s; JSON: {path}")
+        return
     for name in ([] if args.skip_identification else names):
         res["identification"].append(identification(name))
         save()

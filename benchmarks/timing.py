@@ -1,6 +1,7 @@
 """Helpers shared by the benchmark scripts: timing (best of ``repeat`` runs, wall clock), CPU
 time with the worker processes', and the code a result belongs to."""
 import hashlib
+import json
 import resource
 import subprocess
 import time
@@ -39,3 +40,13 @@ def code_state(*paths):
     return {"commit": git("rev-parse", "HEAD"), "paths": paths,
             "dirty": bool(git("status", "--porcelain", "--", *paths)),
             "diff_sha1": hashlib.sha1(git("diff", "--", *paths).encode()).hexdigest()}
+
+
+def child_json(python, script, args):
+    """Run ``script`` (a benchmark in its child mode) with the interpreter ``python`` -- another
+    version's, whose installed fdid_fmi it then measures -- and return the last line it printed,
+    parsed as JSON, or ``{"error": the last line of its stderr}`` when it failed."""
+    p = subprocess.run([python, str(script), *args], capture_output=True, text=True, cwd=ROOT)
+    if p.returncode != 0:
+        return {"error": (p.stderr.strip().splitlines() or ["?"])[-1][:300]}
+    return json.loads(p.stdout.strip().splitlines()[-1])

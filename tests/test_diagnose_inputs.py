@@ -117,6 +117,7 @@ def _renamed(d, a, b):
     (dict(max_delay=-1), "max_delay must be an integer >= 2"),          # numpy's argmin of nothing
     (dict(detectors=[]), "no detector given"),                          # ran every detector
     (dict(workers=0), "workers must be an integer >= 1"),
+    (dict(search="lbfgs"), "unknown refit search 'lbfgs'"),   # before any work, not at the first refit
     (dict(max_delay=3000), "max_delay 3000 samples is not shorter than half"),   # hours of refits of meaningless shifts
 ])
 def test_diagnose_checks_its_options(small, kw, match):

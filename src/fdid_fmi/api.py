@@ -278,7 +278,7 @@ def validate(fmu, trace, *, model=None, tolerance_mm=1e-9):
 
 # ----------------------------------------------------------------------------- diagnosis
 def diagnose(model, train, val=None, *, detectors=None, min_gain=0.05, max_loss=0.01, max_steps=4,
-             maxiter=25, exclude=(), jobs=None, progress=None):
+             maxiter=25, exclude=(), jobs=None, progress=None, search="vp"):
     """Find what the model's residual says it lacks (friction at reversals, a mode, dead time,
     a position-periodic force, coupling), add it, refit, keep only what lowers the held-out error.
 
@@ -300,7 +300,8 @@ def diagnose(model, train, val=None, *, detectors=None, min_gain=0.05, max_loss=
     max_steps : int
         At most this many effects added (per axis of a combined model).
     maxiter : int
-        Differential-evolution iterations of each refit.
+        Iterations of each refit's pole search: steps of each local search of ``vp``,
+        generations of ``de``.
     exclude : sequence of str
         Channels never used as inputs.
     jobs : int, optional
@@ -308,6 +309,9 @@ def diagnose(model, train, val=None, *, detectors=None, min_gain=0.05, max_loss=
         the result is the same for any number.
     progress : callable(str), optional
         Called with progress messages.
+    search : str
+        Pole search of every refit: ``vp`` (variable projection from the current poles or a
+        Sobol screen, as ``identify``'s default) or ``de`` (differential evolution: slower).
 
     Returns
     -------
@@ -337,7 +341,7 @@ def diagnose(model, train, val=None, *, detectors=None, min_gain=0.05, max_loss=
     return _diagnose(model, _trace(train), None if val is None else _trace(val),
                      detectors=None if detectors is None else list(detectors), min_gain=min_gain,
                      max_loss=max_loss, max_steps=max_steps, maxiter=maxiter, exclude=list(exclude),
-                     workers=jobs, progress=progress)
+                     workers=jobs, progress=progress, search=search)
 
 
 # ----------------------------------------------------------------------------- planning

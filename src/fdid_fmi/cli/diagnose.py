@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import sys
 
+from ..diagnose.augment import METHODS
 from ..errors import InputError, naming
 from ..model import DriveModel, load_model
 from ..outputs import atomic_write, check_output, same_file
@@ -39,7 +40,13 @@ def register(sub):
     p.add_argument("--max-loss", type=fraction("--max-loss"), default=0.01,
                    help="... and no scored channel rises by more than this fraction (0.01)")
     p.add_argument("--max-steps", type=int_in(0, 100, "--max-steps"), default=4, help="at most this many effects added (per axis of a combined per-axis model)")
-    p.add_argument("--maxiter", type=int_in(1, 100000, "--maxiter"), default=25, help="DE iterations of each refit")
+    p.add_argument("--search", choices=METHODS, default="vp",
+                   help="pole search of every refit: vp (variable projection: Gauss-Newton searches from the "
+                        "current poles or a Sobol screen, as fdid identify's default) or de (differential "
+                        "evolution, population 8 per coordinate: slower); default vp")
+    p.add_argument("--maxiter", type=int_in(1, 100000, "--maxiter"), default=25,
+                   help="iterations of each refit's pole search: vp: steps of each local search; de: "
+                        "generations")
     p.add_argument("--jobs", type=int_in(1, 1024, "--jobs"), default=None,
                    help="processes running the independent refits side by side (default: one per core; "
                         "the result is the same for any number)")
@@ -146,6 +153,7 @@ def run(args):
     dets = [d.strip() for d in args.detectors.split(",") if d.strip()] if args.detectors is not None else None
     diag = diagnose(model, train, val, detectors=dets, min_gain=args.min_gain, max_loss=args.max_loss,
                     max_steps=args.max_steps, maxiter=args.maxiter, exclude=args.exclude, jobs=args.jobs,
+                    search=args.search,
                     progress=lambda m: print(f"  {m}", file=sys.stderr))
     fmu = fmu_check(diag) if args.fmu else None
     if diag.split:

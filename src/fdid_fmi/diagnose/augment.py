@@ -39,7 +39,10 @@ Refits (``search``): ``locked`` one LS projection with every pole fixed (screeni
 parameters); ``local`` the poles searched in a window around their current values (real poles
 / 2 .. x 2, natural frequencies / 1.5 .. x 1.5, damping / 3 .. x 3), new pairs in their own
 bounds; ``wide`` the default search space of the engine (a dead time moves the poles far).
-v_tilde stays at the model's value.
+v_tilde stays at the model's value. The pole search of every refit is the recipe's ``method``
+(``identify_mimo``'s): ``vp`` (default: variable projection, Gauss-Newton from a Sobol screen and
+the start point) or ``de`` (differential evolution); ``maxiter`` counts the residual evaluations
+of each ``vp`` local search (besides its Jacobians) or the generations of ``de``.
 """
 from __future__ import annotations
 
@@ -82,6 +85,7 @@ class Recipe:
                                                      # identify's default), kept through refits
     reserved: set = field(default_factory=set)       # port names new inputs must not take (the
                                                      # other blocks of a combined per-axis model)
+    method: str = "vp"                               # pole search of every refit (METHODS)
 
     @property
     def order(self):
@@ -99,13 +103,19 @@ class Recipe:
         return [s.name for s in self.inputs]
 
 
-def recipe_from_model(model: DriveModel, reserved=()) -> Recipe:
+METHODS = ("vp", "de")      # pole searches of a refit (identify_mimo's method)
+
+
+def recipe_from_model(model: DriveModel, reserved=(), method="vp") -> Recipe:
     """Recipe of a pole-search / MIMO model (``identification["structure"]`` must be present).
+    Its refits use the pole search ``method`` (one of :data:`METHODS`).
 
     A combined per-axis model (``identification["blocks"]``) is diagnosed block by block
     (:func:`.loop.split_blocks`); ``reserved`` are port names of the other blocks, which inputs
     added to this block must not take (the combined model needs unique names).
     """
+    if method not in METHODS:
+        raise InputError(f"unknown refit search '{method}'; choose one of {METHODS}", column="search")
     ident = model.identification or {}
     if not isinstance(ident, dict):
         raise InputError(f"the model's identification record is a {type(ident).__name__}, not a table; "
@@ -150,7 +160,7 @@ def recipe_from_model(model: DriveModel, reserved=()) -> Recipe:
                   locked_real_hz=list(rec.locked_real_hz),
                   locked_complex=[tuple(c) for c in rec.locked_complex], v_tilde=vt,
                   delays={a: int(d) for a, d in rec.diagnose.get("delays", {}).items()},
-                  effects=list(model.effects), reserved=set(reserved),
+                  effects=list(model.effects), reserved=set(reserved), method=method,
                   structure_chosen=bool(rec.structure_choice or rec.diagnose.get("structure_chosen")))
 
 
@@ -261,11 +271,16 @@ def model_velocity_traces(model: DriveModel, traces):
 
 
 def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, refine=True,
-        from_current=False) -> DriveModel:
+        from_current=False, select=True) -> DriveModel:
     """Refit a recipe on training traces with the pole-search engine (see module docstring).
 
     ``traces`` should carry the velocity the features are to see (:func:`model_velocity_traces`).
+    The pole search is the recipe's ``method``; ``maxiter`` and ``popsize`` are its settings
+    (``search.run_search``: residual evaluations of each ``vp`` local search, generations and
+    population of ``de``).
     ``refine``: the engine's simulation-consistent friction refinement (off for quick screening).
+    ``select``: the engine's pick by training free run among near-best minima, with ``vp`` its
+    free-run polish (``identify_mimo``; off where only the LS objective is read).
     ``from_current``: start the search from the recipe's poles (new pairs: the middle of their
     bounds), so that the search ends no worse in the LS objective than that start.
 
@@ -284,8 +299,8 @@ def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, r
         warnings.simplefilter("ignore", LinAlgWarning)
         warnings.simplefilter("ignore", RuntimeWarning)
         model = identify_mimo(shifted_traces(recipe, traces), st, bounds=bounds,
-                              v_tilde=dict(recipe.v_tilde), method="de", seed=seed, maxiter=maxiter,
-                              popsize=popsize, refine=refine,
+                              v_tilde=dict(recipe.v_tilde), method=recipe.method, seed=seed, maxiter=maxiter,
+                              popsize=popsize, refine=refine, select=select,
                               start=_start(recipe) if from_current and search != "locked" else None)
     model.method = "pole-search+diagnose"
     for a, d in recipe.delays.items():
@@ -300,7 +315,16 @@ def fit(recipe: Recipe, traces, search="local", maxiter=25, popsize=8, seed=0, r
 
 def fit_objective(recipe: Recipe, traces, **kw):
     """The scaled LS objective of :func:`fit` (one point of a parameter scan); inf when the
-    pole search finds no feasible model there (``identify_mimo`` raises InputError)."""
+    pole search finds no feasible model there (``identify_mimo`` raises InputError).
+
+    Under ``vp`` a local scan point's search starts from the recipe's poles (``from_current``,
+    unless given) and its best LS minimum is the result (``select`` off): the scan reads
+    differences of the LS objective between neighbouring parameter values, which searches from
+    one start read without the scatter of where searches from a screen end, and which the pick
+    by free run and the polish, at a higher objective, only blur.
+    """
+    if recipe.method == "vp":
+        kw = {"from_current": True, "select": False, **kw}
     try:
         return fit(recipe, traces, **kw).metrics["objective_scaled_rms"]
     except InputError:

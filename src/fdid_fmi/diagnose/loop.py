@@ -462,8 +462,8 @@ def _order_check(recipe, vel_train, train, val, maxiter):
 
 
 def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, max_loss=0.01,
-             max_steps=4, maxiter=25, exclude=(), max_delay=6, progress=None, workers=1, _reserved=(),
-             _block=False, _whole=None, _refits=None) -> Diagnosis:
+             max_steps=4, maxiter=25, exclude=(), max_delay=6, progress=None, workers=1, search="vp",
+             _reserved=(), _block=False, _whole=None, _refits=None) -> Diagnosis:
     """Find what the residual says the model lacks, add it, and report the error before and after.
 
     Parameters
@@ -479,11 +479,15 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     detectors : names from DETECTORS to run (default all)
     min_gain, max_loss : keep criterion (module docstring)
     max_steps : at most this many effects added (per block of a combined model)
-    maxiter : DE iterations of each refit
+    maxiter : iterations of each refit's pole search: residual evaluations of each local search
+        of ``vp`` (besides its Jacobians), generations of ``de``
     exclude : channel names never used as inputs
     max_delay : largest command shift tried (samples); a best shift equal to it is not named
         (:func:`.delay.shift_statistic`), so the largest dead time named is max_delay - 1
     progress : callable(str) for progress messages, optional
+    search : pole search of the refits, ``vp`` (variable projection from the current poles or a
+        Sobol screen, as ``fdid identify``'s default) or ``de`` (differential evolution, population
+        8 per coordinate)
     workers : processes the independent refits run in (:mod:`.refits`; None: every core; 1: in
         this process); the result is the same for any number, bit for bit when this process
         runs BLAS on one thread as the workers do (``fdid`` does: :mod:`fdid_fmi.workers`)
@@ -530,10 +534,10 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
         if nm not in DETECTORS:
             raise InputError(f"unknown detector '{nm}'; choose from {sorted(DETECTORS)}", column="detectors")
     settings = {"min_gain": min_gain, "max_loss": max_loss, "max_steps": max_steps, "maxiter": maxiter,
-                "exclude": list(exclude), "max_delay": max_delay, "detectors": names}
+                "exclude": list(exclude), "max_delay": max_delay, "detectors": names, "search": search}
     blocks = split_blocks(model)
     for b in blocks:                    # refuse a block that cannot be refitted before any work
-        ag.recipe_from_model(b)
+        ag.recipe_from_model(b, method=search)
     # no command of the model moves: nothing to fit (every detector sees no motion) or to judge
     # (a residual of rounding noise would decide what is kept). A block of a combined model whose
     # own command never moves in the training trace is left as it is, with a note (_combined)
@@ -546,7 +550,7 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     try:
         if len(blocks) > 1 or blocks[0] is not model:
             kw = dict(detectors=names, min_gain=min_gain, max_loss=max_loss, max_steps=max_steps,
-                      maxiter=maxiter, exclude=exclude, max_delay=max_delay)
+                      maxiter=maxiter, exclude=exclude, max_delay=max_delay, search=search)
             return _combined(model, blocks, train, val, split, kw, say, t0, whole, refits)
         return _diagnose_block(model, train, val, settings, split, whole, _reserved, say, t0, refits)
     finally:
@@ -564,7 +568,7 @@ def _diagnose_block(model, train, val, settings, split, whole, reserved, say, t0
     # 10 of 11 runs); the null refit, fitted on the first part as the candidates are, is the reference,
     # and what is kept is refitted on the whole trace at the end (_refit_on_whole)
     in_sample = whole is not None   # the current model predicts the held-out part in-sample
-    recipe = ag.recipe_from_model(model, reserved=reserved)
+    recipe = ag.recipe_from_model(model, reserved=reserved, method=settings["search"])
     current = model
     res0 = {"train": residuals(model, train), "val": residuals(model, val)}
     diag = Diagnosis(model=model, final=model, train=train, val=val, settings=settings, split=split)

@@ -98,7 +98,7 @@ class _Params:
 # ------------------------------------------------------------------ API
 def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_tilde=None,
                   method="de", seed=0, maxiter=None, popsize=None, progress=False, refine=True,
-                  start=None, warm=()):
+                  start=None, warm=(), select=True):
     """Scaled MIMO LTI pole search (thesis ch. 5) -> unscaled DriveModel.
 
     Parameters
@@ -122,6 +122,11 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
         run among the minima within ``SELECT_MARGIN`` of the best).
     warm : sequence of (real_hz, complex_hz_zeta[, v_tilde dict]), more start points of the
         ``vp`` search (as ``start``; v_tilde of the searched axes from the dict where given)
+    select : bool
+        Pick the model by training free run among the minima within ``SELECT_MARGIN`` of the
+        best and, with ``vp``, the free-run polish (:func:`_polish_free_run`). False: the best
+        LS minimum alone, for a caller that reads only the LS objective (a scan of an effect's
+        parameter), which selection and polish do not lower.
 
     Returns
     -------
@@ -132,7 +137,7 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
     if structure.same_sample is None:
         return _choose_same_sample(traces, structure, bounds=bounds, v_tilde=v_tilde, method=method,
                                    seed=seed, maxiter=maxiter, popsize=popsize, progress=progress,
-                                   refine=refine, start=start, warm=warm)
+                                   refine=refine, start=start, warm=warm, select=select)
     prob = LSProblem(traces, structure)
     Ts = prob.Ts
     fric_axes = [s.axis for s in structure.inputs if s.kind == "friction"]
@@ -206,6 +211,8 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
     # points of the other basins the search visited within SELECT_MARGIN of the best are finished
     # too, and the candidate with the lowest free-run error on the training data is kept
     cands = [(fun, xbest)] + [(f, x) for f, x in minima[1:] if f <= fun * (1 + SELECT_MARGIN)][:MAX_ALTERNATIVES]
+    if not select:
+        cands = cands[:1]
     do_refine = refine and fric_axes and not any(o.integrators for o in structure.outputs)
     if method == "vp" and do_refine and len(cands) > VP_REFINED:
         # the vp search's alternatives are the points on its local searches' paths: ranked by
@@ -215,7 +222,7 @@ def identify_mimo(traces, structure: Structure, bounds: Bounds | None = None, v_
         order = sorted((k for k, c in enumerate(plain) if c is not None), key=lambda k: plain[k]["free_run"])
         cands = cands[:1] + [cands[1 + k] for k in order[:VP_REFINED - 1]]
     polished = None
-    if method == "vp" and par.lo.size and _selection_outputs(structure):
+    if method == "vp" and select and par.lo.size and _selection_outputs(structure):
         polished, (k0, done) = _polish_free_run(prob, structure, par, cands, fun, do_refine)
         cands = cands + [polished]
     finished = [done if polished and k == k0 and done is not None
