@@ -55,6 +55,10 @@ class Candidate:
     not_checked : why the detector could not test for the effect on these data ('' when it
            could); such a candidate is never detected, and the diagnosis reports it as a note
            (``not_checked``, :mod:`.limits`) instead of "nothing found"
+    prepare : callable without arguments, optional -- builds ``recipe`` (and ``reference``, and
+           the parameters a refit needs, e.g. a Stribeck velocity's scan) as a detected candidate
+           gets them; the loop calls it for a candidate below its threshold that it tries all the
+           same (:data:`.loop.UNEXPLAINED_SHARE`). None: nothing could be tried
     """
 
     kind: str
@@ -71,6 +75,7 @@ class Candidate:
     note: str = ""
     reference: object = None
     not_checked: str = ""
+    prepare: object = field(default=None, repr=False, compare=False)
 
     @property
     def label(self):

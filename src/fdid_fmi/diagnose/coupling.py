@@ -22,13 +22,15 @@ both plants.
 """
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 
 from ..identify import regressors as rg
 from . import augment as ag
 from .base import Candidate
+from .thresholds import threshold
 
-R2 = 0.15
 MAX_FOLLOW = 0.9
 
 
@@ -74,6 +76,10 @@ def candidates(trace, model, exclude=()):
     return out
 
 
+def _prepare(cand, recipe, a, ch, kind, extra, powers):
+    cand.recipe = ag.add_external(recipe, a, ch, kind, extra, powers=powers)
+
+
 def detect(ctx):
     out = []
     a_poly = ctx.model.identification.get("denominator")
@@ -103,15 +109,16 @@ def detect(ctx):
             params = {"channel": ch}
             if src:
                 params["source_axis"] = src
-            cand = Candidate(kind, a, r2, R2, params=params, evidence={"follows_command_r2": f},
+            cand = Candidate(kind, a, r2, threshold(kind, ctx.settings), params=params, evidence={"follows_command_r2": f},
                              note=f"R^2 of the residual on the filtered channel '{ch}'")
             if f > MAX_FOLLOW:
                 cand.threshold = float("inf")
                 cand.note += (f"; skipped: the axis command explains {f:.0%} of it (a loop signal, "
                               f"not an independent input)")
-            if cand.detected:
-                powers = [n - l for l in ls]
+            if np.isfinite(cand.threshold):     # a loop signal is never tried
                 extra = {"source_axis": src} if src else {}
-                cand.recipe = ag.add_external(ctx.recipe, a, ch, kind, extra, powers=powers)
+                cand.prepare = partial(_prepare, cand, ctx.recipe, a, ch, kind, extra, [n - l for l in ls])
+            if cand.detected:
+                cand.prepare()
             out.append(cand)
     return out

@@ -80,11 +80,9 @@ from ..model import is_play
 from . import augment as ag
 from .base import Candidate, command_velocity, motion_events, scan_refine
 from .residuals import residuals
+from .thresholds import threshold
 
 WINDOW_S = 0.04
-STRIBECK_RATIO = 1.0      # a floor: the refit decides (module docstring)
-ASYM_T = 4.0
-BACKLASH_T = 8.0
 MIN_MOVES = 3           # moves the t statistics need
 
 
@@ -196,26 +194,27 @@ def _detect_axis(ctx, a):
     me, tm = _move_offsets(ctx.res, a, Ts, w)
     cands = []
     ratio = concentration(ctx.res, a, Ts, rest="pooled")
-    cand = Candidate("stribeck", a, ratio, STRIBECK_RATIO,
+    cand = Candidate("stribeck", a, ratio, threshold("stribeck", ctx.settings),
                      evidence={"window_s": WINDOW_S, "events": int(me.size)},
                      note="residual energy in the 40 ms after motion starts/stops over the rest")
     if not any(_has_windows(res.axes[a], Ts, w) for res in ctx.res):
         cand.not_checked = ("the training trace has no motion start or stop with samples both in and "
                             "after the 40 ms window that follows it")
+    else:
+        cand.prepare = partial(_prepare_stribeck, cand, ctx, a)
     if cand.detected:
-        cand.params["v_s_mm_s"] = _best_vs(ctx, a, ctx.recipe)
-        cand.recipe = ag.add_stribeck(ctx.recipe, a, cand.params["v_s_mm_s"])
+        cand.prepare()
     cands.append(cand)
     own = [s for s in ctx.recipe.inputs if s.axis == a]
     if cand.detected and any(s.kind == "friction" for s in own) and not any(map(is_play, own)):
         cands.append(_play_law_candidate(ctx, a, cand))     # a sat-law axis without a play
 
     t_even = _t(me)
-    cand = Candidate("asymmetric_friction", a, abs(t_even), ASYM_T,
+    cand = Candidate("asymmetric_friction", a, abs(t_even), threshold("asymmetric_friction", ctx.settings),
                      params={"mean_offset_um": float(np.mean(me) * 1e3) if me.size else 0.0},
                      note="|t| of the direction-independent mean residual over moves")
     has_friction = ctx.model.input_index("friction", a) is not None
-    base = ctx.recipe
+    twin_used = None
     if me.size < MIN_MOVES:
         cand.not_checked = f"the training trace has {me.size} move(s); the t statistic needs {MIN_MOVES}"
     elif not cand.detected and has_friction and ag.has_integral_action(ctx.recipe, a):
@@ -228,11 +227,11 @@ def _detect_axis(ctx, a):
         elif t_twin > cand.statistic:
             cand.statistic, cand.params["mean_offset_um"] = t_twin, offset
             cand.note += " (of the model's refitted twin without integral action)"
-            if cand.detected:   # the effect then changes the structure, which its record says
-                base, cand.search, cand.reference = twin, "wide", twin
-                cand.params["integral_action"] = False
+            twin_used = twin
+    if has_friction and not cand.not_checked:
+        cand.prepare = partial(_prepare_asymmetry, cand, ctx.recipe, a, twin_used)
     if cand.detected and has_friction:
-        cand.recipe = ag.add_asymmetry(base, a)
+        cand.prepare()
     elif cand.detected:
         cand.note += " (the axis has no sat(v / v_tilde) friction input: not tried)"
     cands.append(cand)
@@ -240,22 +239,43 @@ def _detect_axis(ctx, a):
     if tm is not None:
         t_tool = _t(tm)
         b = 2.0 * abs(float(np.mean(tm))) if tm.size else 0.0
-        cand = Candidate("backlash", a, abs(t_tool), BACKLASH_T, params={"backlash_mm": b}, search="locked",
+        cand = Candidate("backlash", a, abs(t_tool), threshold("backlash", ctx.settings), params={"backlash_mm": b}, search="locked",
                          evidence={"moves": int(tm.size)},
                          note="|t| of the direction-aligned tool-side offset over moves; backlash and the "
                               "lost motion of an elastic drive train with friction on the tool side (2 F/k) "
                               "give the same offset in position data")
         if tm.size < MIN_MOVES:
             cand.not_checked = f"the training trace has {tm.size} move(s); the t statistic needs {MIN_MOVES}"
-        if cand.detected and ag.carries_lost_motion(ctx.recipe, a):
+        carried = ag.carries_lost_motion(ctx.recipe, a)
+        if not carried and not cand.not_checked:
+            cand.prepare = partial(_prepare_backlash, cand, ctx.recipe, a)
+        if cand.detected and carried:
             cand.note += ("; not refitted: the model's friction already reaches the tool side with a d.c. "
                           "gain, the same regressor (the note 'carried' gives the lost motion it carries)")
         elif cand.detected:
-            vt = ctx.recipe.v_tilde.get(a, 1.0)
-            cand.recipe = ag.add_backlash(ctx.recipe, a, vt)
-            cand.reference = ag.add_tool_output(ctx.recipe, a)
+            cand.prepare()
         cands.append(cand)
     return cands
+
+
+def _prepare_stribeck(cand, ctx, a):
+    cand.params["v_s_mm_s"] = _best_vs(ctx, a, ctx.recipe)
+    cand.recipe = ag.add_stribeck(ctx.recipe, a, cand.params["v_s_mm_s"])
+
+
+def _prepare_asymmetry(cand, recipe, a, twin):
+    """The asymmetry's refit; on the P-loop twin when the twin's offset is the statistic (the
+    effect then changes the structure, which its record says, and the twin is its reference)."""
+    base = recipe
+    if twin is not None:
+        base, cand.search, cand.reference = twin, "wide", twin
+        cand.params["integral_action"] = False
+    cand.recipe = ag.add_asymmetry(base, a)
+
+
+def _prepare_backlash(cand, recipe, a):
+    cand.recipe = ag.add_backlash(recipe, a, recipe.v_tilde.get(a, 1.0))
+    cand.reference = ag.add_tool_output(recipe, a)
 
 
 def _moves(ev, moving, w, n):

@@ -27,17 +27,19 @@ decides. A dead time also leaves a command-coherent residual (plant2 delay: 0.28
 """
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 from scipy import signal
 from scipy.ndimage import median_filter
 
 from . import augment as ag
 from .base import Candidate
+from .thresholds import threshold
 
 F_LO = 8.0
 MEDIAN_HZ = 15.0
 MIN_COHERENCE = 0.5
-COHERENT_FRACTION = 0.27
 
 
 def transfer_to_residual(r, cmd, Ts, nperseg=None):
@@ -52,6 +54,10 @@ def transfer_to_residual(r, cmd, Ts, nperseg=None):
     H = np.abs(Pra) / np.maximum(Paa, 1e-300)
     coh = np.abs(Pra) ** 2 / np.maximum(Paa * Prr, 1e-300)
     return f, H, coh, Paa
+
+
+def _prepare(cand, recipe, a, fpk):
+    cand.recipe = ag.add_mode(recipe, a, fpk)
 
 
 def detect(ctx):
@@ -78,7 +84,7 @@ def detect(ctx):
                 d = y0 - 2 * y1 + y2
                 if d < 0:
                     fpk = float(f[i] + 0.5 * (y0 - y2) / d * df)
-        cand = Candidate("mode", a, frac, COHERENT_FRACTION, params={"peak_hz": fpk},
+        cand = Candidate("mode", a, frac, threshold("mode", ctx.settings), params={"peak_hz": fpk},
                          evidence={"peak_ratio": ratio, "coherent_bins": int(coherent.sum()),
                                    "analysed_bins": int(band.sum())},
                          plot={"f_hz": f, "H": H, "background": np.exp(bg), "coherence": coh},
@@ -88,7 +94,9 @@ def detect(ctx):
             cand.not_checked = (f"the command has no energy between {F_LO:g} Hz and 0.4 / Ts "
                                 f"({0.4 / ctx.Ts:g} Hz) at the spectral resolution of this trace "
                                 f"({df:.3g} Hz)")
-        if cand.detected and np.isfinite(fpk):
-            cand.recipe = ag.add_mode(ctx.recipe, a, fpk)
+        if np.isfinite(fpk) and not cand.not_checked:
+            cand.prepare = partial(_prepare, cand, ctx.recipe, a, fpk)
+            if cand.detected:
+                cand.prepare()
         out.append(cand)
     return out
