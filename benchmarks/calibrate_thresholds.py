@@ -18,6 +18,11 @@ the table now; the values go into ``thresholds.THRESHOLDS`` by hand, with the co
     .venv/bin/python benchmarks/calibrate_thresholds.py [--cases N] [--start SEED] [--rate 0.05]
         [--scale F] [--identify-maxiter N] [--maxiter N] [--jobs N] [--out NAME.json]
     .venv/bin/python benchmarks/calibrate_thresholds.py --print-only calibrate_thresholds.json [...]
+    .venv/bin/python benchmarks/calibrate_thresholds.py --skip-family --plants [--print-only ...]
+
+``--plants``: every statistic, thresholds infinite, on the scenarios of plant2 (seed 0) and of the
+virtual drive, on their default-path models, against the calibrated thresholds (which of their
+effects would fall below; which clean scenario would pass): calibrate_thresholds_plants.json.
 
 BLAS pinned to one thread.
 """
@@ -94,6 +99,63 @@ def run_case(seed, args, refits):
     return row
 
 
+def plant_runs(args, refits):
+    """Every detector's statistic (thresholds infinite) on the scenarios of plant2 (seed 0) and of
+    the virtual drive, each on its default-path model (``identify_auto``, what ``fdid identify``
+    fits): [{plant, scenario, expected kind or None, stats}]."""
+    from bench_plant2 import VIRTUAL_CLEAN, VIRTUAL_EFFECTS
+    from fdid_fmi.diagnose.scenarios import scenario as vscenario
+    from plant2 import scenarios as p2
+    todo = [("plant2", n) for n in p2.SCENARIOS] + [("virtual", n) for n in VIRTUAL_CLEAN + tuple(VIRTUAL_EFFECTS)]
+    out = []
+    for plant, name in todo:
+        t0 = time.perf_counter()
+        if plant == "plant2":
+            train, _, truth = p2.scenario(name)
+            tr, ax, expected = train[0], truth["axis"], truth["effect"]
+        else:
+            tr, _ = vscenario(name)
+            ax, expected = "x", VIRTUAL_EFFECTS.get(name)
+        row = {"plant": plant, "scenario": name, "expected": expected}
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                m = identify_auto(tr, ax, seed=0, workers=args.jobs)
+                row["structure"] = m.identification.get("structure_choice", {}).get("chosen")
+                row["stats"] = clean_statistics(m, tr, args.plant_maxiter, refits)
+        except Exception as exc:
+            row["error"] = f"{type(exc).__name__}: {exc}".splitlines()[0][:300]
+            traceback.print_exc()
+        row["wall_s"] = time.perf_counter() - t0
+        print(f"[{plant} {name}] {row.get('structure') or row.get('error')} ({row['wall_s']:.0f} s)", flush=True)
+        out.append(row)
+    return out
+
+
+def print_plants(runs, tab):
+    """Per plant scenario: its effect's statistic over the calibrated threshold and the one now;
+    clean scenarios: the largest ratio of any statistic."""
+    print("\n| plant | scenario | effect | statistic | value | / threshold now | / calibrated | passes calibrated |")
+    print("|---|---|---|---|---:|---:|---:|---|")
+    for r in runs:
+        st = r.get("stats") or {}
+        if r["expected"] is None:
+            ratios = {k: max(v) / tab[k]["threshold"] for k, v in st.items() if v and k in tab}
+            k = max(ratios, key=ratios.get) if ratios else None
+            if k:
+                print(f"| {r['plant']} | {r['scenario']} | clean | {k} (largest) | {max(st[k]):.3g} | "
+                      f"{max(st[k]) / THRESHOLDS[k].value:.2f} | {ratios[k]:.2f} | "
+                      f"{'FALSE ALARM' if ratios[k] >= 1 else 'no'} |")
+            continue
+        keys = [k for k in tab if k.split(" (")[0] == key(r["expected"]) or
+                (r["expected"] in ("coupling", "extra_input") and k == "channel")]
+        for k in keys:
+            v = max(st.get(k) or [float("nan")])
+            print(f"| {r['plant']} | {r['scenario']} | {r['expected']} | {k} | {v:.3g} | "
+                  f"{v / THRESHOLDS[k].value:.2f} | {v / tab[k]['threshold']:.2f} | "
+                  f"{'yes' if v >= tab[k]['threshold'] else 'BELOW'} |")
+
+
 def table(rows, rate):
     """Per table key: the calibrated threshold, k, N, the largest clean values, the value now."""
     out = {}
@@ -133,15 +195,33 @@ def main(argv=None):
     ap.add_argument("--jobs", type=int, default=2, help="worker processes")
     ap.add_argument("--out", default=OUT_DEFAULT, help="file name in benchmarks/results")
     ap.add_argument("--print-only", nargs="*", metavar="JSON", help="the table of earlier runs (merged)")
+    ap.add_argument("--plants", action="store_true", help="also every statistic on plant2's and the virtual "
+                    "drive's scenarios (default-path models) against the calibrated thresholds")
+    ap.add_argument("--plant-maxiter", type=int, default=25, help="iterations of the detectors' own refits "
+                    "on the plants' scenarios (default 25, diagnose's)")
+    ap.add_argument("--skip-family", action="store_true", help="no family cases: the calibration table "
+                    "of --print-only's files (or --out's), and --plants against it")
     args = ap.parse_args(argv)
-    if args.print_only is not None:
-        rows, rate = [], args.rate
+    if args.print_only is not None or args.skip_family:
+        rows, rate, plants = [], args.rate, []
         for f in args.print_only or [args.out]:
             part = json.loads((OUT / f).read_text())
             have = {r["seed"] for r in rows}
             rows += [r for r in part["cases"] if r["seed"] not in have]
+            plants = part.get("plants") or plants
         print(f"{len(rows)} clean cases")
-        print_table(table(rows, rate))
+        tab = table(rows, rate)
+        print_table(tab)
+        if args.plants and args.skip_family:
+            t0 = time.perf_counter()
+            with Refits(args.jobs) as refits:
+                plants = plant_runs(args, refits)
+            path = OUT / "calibrate_thresholds_plants.json"
+            path.write_text(json.dumps({"code": code_state("src"), "plants": plants,
+                                        "wall_s": time.perf_counter() - t0}, indent=1, default=float))
+            print(f"JSON: {path}")
+        if plants:
+            print_plants(plants, tab)
         return
     OUT.mkdir(parents=True, exist_ok=True)
     path = OUT / args.out
