@@ -102,11 +102,13 @@ def run_case(seed, args, refits):
 def plant_runs(args, refits):
     """Every detector's statistic (thresholds infinite) on the scenarios of plant2 (seed 0) and of
     the virtual drive, each on its default-path model (``identify_auto``, what ``fdid identify``
-    fits): [{plant, scenario, expected kind or None, stats}]."""
+    fits, with the calibration's iterations): [{plant, scenario, expected kind or None, stats}]."""
     from bench_plant2 import VIRTUAL_CLEAN, VIRTUAL_EFFECTS
     from fdid_fmi.diagnose.scenarios import scenario as vscenario
     from plant2 import scenarios as p2
     todo = [("plant2", n) for n in p2.SCENARIOS] + [("virtual", n) for n in VIRTUAL_CLEAN + tuple(VIRTUAL_EFFECTS)]
+    if args.plant_scenarios:
+        todo = [pn for pn in todo if f"{pn[0]}:{pn[1]}" in args.plant_scenarios.split(",")]
     out = []
     for plant, name in todo:
         t0 = time.perf_counter()
@@ -120,7 +122,7 @@ def plant_runs(args, refits):
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                m = identify_auto(tr, ax, seed=0, workers=args.jobs)
+                m = identify_auto(tr, ax, seed=0, maxiter=args.identify_maxiter, workers=args.jobs)
                 row["structure"] = m.identification.get("structure_choice", {}).get("chosen")
                 row["stats"] = clean_statistics(m, tr, args.plant_maxiter, refits)
         except Exception as exc:
@@ -197,8 +199,10 @@ def main(argv=None):
     ap.add_argument("--print-only", nargs="*", metavar="JSON", help="the table of earlier runs (merged)")
     ap.add_argument("--plants", action="store_true", help="also every statistic on plant2's and the virtual "
                     "drive's scenarios (default-path models) against the calibrated thresholds")
-    ap.add_argument("--plant-maxiter", type=int, default=25, help="iterations of the detectors' own refits "
-                    "on the plants' scenarios (default 25, diagnose's)")
+    ap.add_argument("--plant-maxiter", type=int, default=8, help="iterations of the detectors' own refits "
+                    "on the plants' scenarios (default 8, as the calibration's)")
+    ap.add_argument("--plant-scenarios", default="", help="comma-separated plant:scenario (e.g. "
+                    "plant2:delay,virtual:mode; default every one)")
     ap.add_argument("--skip-family", action="store_true", help="no family cases: the calibration table "
                     "of --print-only's files (or --out's), and --plants against it")
     args = ap.parse_args(argv)
@@ -207,7 +211,7 @@ def main(argv=None):
         for f in args.print_only or [args.out]:
             part = json.loads((OUT / f).read_text())
             have = {r["seed"] for r in rows}
-            rows += [r for r in part["cases"] if r["seed"] not in have]
+            rows += [r for r in part.get("cases", []) if r["seed"] not in have]
             plants = part.get("plants") or plants
         print(f"{len(rows)} clean cases")
         tab = table(rows, rate)

@@ -39,34 +39,18 @@ Backlash / lost motion (needs a tool-side channel)
     (``augment.keep_base_outputs``), and it must beat the same tool-side output without the
     backlash input (``reference``).
 
-Thresholds (calibration: ``examples/diagnose_calibrate.py``, 15 clean virtual-drive runs --
-gentle and fast moves, a softer velocity loop, two uncoupled axes, a P loop, 3 seeds each): the largest
-clean values were 2.35 (concentration; Stribeck data: 3.5-4) and 2.0 (|t| asymmetry; the
-asymmetric P-loop data: 5.5); hence
-a separating Stribeck gate of 2.6 (the gate is a floor of 1.0, below) and ``ASYM_T`` = 4. The clean
-runs have no tool channel; the tool-side
-statistic was 2.1 on the backlash data once the backlash was modelled and 5.8 on a two-mass axis
-without backlash (tool-side dynamics, not lost motion), against 73 with 20 µm backlash: hence
-``BACKLASH_T`` = 8.
-
-Recalibrated with the causal models (``examples/diagnose_calibrate.py --effects --plant2``):
-virtual clean up to 2.17 (concentration, clean_soft seed 5; 1.2 x = 2.60, the separating gate) and
-3.11 (|t|, clean_p seed 3; 1.2 x = 3.73 < 4); virtual Stribeck 3.27, asymmetric P loop 6.84,
-backlash 69. The second plant (tests/plant2, LuGre friction) does NOT transfer for Stribeck: its 9
-clean runs give 6.55-17.7 (all above 2.6: LuGre's own breakaway is what the statistic sees) and
-its Stribeck run 13.1, inside that range; no threshold separates them there, and 1.2 x its clean
-maximum (21.2) would miss the virtual Stribeck. Its clean |t| stays below 1.62 (no asymmetric
-run there). Tool side on plant2: backlash 21.7, the 38 Hz tool-side mode without backlash 11.8
-(tried; the held-out criterion and the reference decide).
-
-The Stribeck gate is 1.0, a floor, not a separation: the concentration only
-asks that the residual sit at the ends of the moves more than elsewhere, and the refit with its
-held-out criterion and the plausibility check (the breakaway excess must be positive) decide. On
-``fdid identify``'s default models the statistic separates neither plant: the virtual Stribeck
-run's chosen r2c2 reads 2.01, below the thesis-path clean maximum (2.17), and its refit is 9 %
-better held out (0.396 -> 0.360 um, kept); the virtual clean runs' default models read 1.20-1.55
-and nothing is kept on them; plant2's runs read 8-52 (all above the separating gate as well), its
-periodic run 0.39-0.46 (not tried).
+Thresholds: ``thresholds.THRESHOLDS`` (``stribeck``, ``asymmetric_friction``, ``backlash``; a 5 %
+false-alarm rate on the plant family's clean calibration cases, the asymmetry's statistic with its
+P-loop twin's). Measured on the two plants the project wrote, thesis-path models: concentration
+on virtual clean runs up to 2.17, its Stribeck run 3.27; plant2 (LuGre friction) clean runs
+6.55-17.7 (LuGre's own breakaway is what the statistic sees), its Stribeck run 13.1, inside that
+range; on ``fdid identify``'s default models the virtual Stribeck run reads 2.01, its clean runs
+1.20-1.55, plant2's runs 8-52. |t| of the asymmetry: virtual clean up to 3.11 (twins 0.41-1.46),
+its asymmetric P loop 6.84 (the default r1c2's twin 5.70); plant2 clean up to 1.62. Tool side:
+virtual backlash 69, a two-mass axis without backlash 5.8; plant2 backlash 21.7, its 38 Hz
+tool-side mode 11.8. The concentration separates neither plant: below the threshold the loop's
+trials, the held-out criterion and the plausibility check (the breakaway excess must be positive)
+decide (:mod:`.loop`).
 """
 from __future__ import annotations
 

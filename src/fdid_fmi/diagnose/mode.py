@@ -17,13 +17,12 @@ fitted pair's frequency and damping are reported, and it is kept only as a reson
 (``base.MODE_MAX_DAMPING``). A dead time also leaves a command-coherent residual: the two
 candidates are both refitted and the better one on training data is tried first (loop.py).
 
-Threshold ``COHERENT_FRACTION`` (calibration: ``examples/diagnose_calibrate.py --effects
---plant2``, 15 clean virtual-drive runs, causal models): clean runs up to 0.225 (softer velocity
-loop, seed 3; above 0.2, which non-causal models' largest, 0.16, would suggest),
-12 of 15 below 0.07; 1.2 x 0.225 = 0.27. The 54 Hz virtual mode gives 0.39. On the second plant
-(tests/plant2) the 52 Hz mode gives 0.34 and the 38 Hz tool-side mode 0.29 (both tried), but one
-of its 9 clean runs (clean_rigid, seed 0) gives 0.42: not separable there; the held-out criterion
-decides. A dead time also leaves a command-coherent residual (plant2 delay: 0.28).
+Threshold: ``thresholds.THRESHOLDS["mode"]`` (a 5 % false-alarm rate on the plant family's
+clean calibration cases). Measured on thesis-path models of the two plants the project wrote:
+virtual clean runs up to 0.225, its 54 Hz mode 0.39; plant2's 52 Hz mode 0.34, its 38 Hz
+tool-side mode 0.29, one of its clean runs 0.42, its delay 0.28: the statistic does not separate
+modes from clean runs there, and below the threshold the loop's trials and the held-out criterion
+decide (:mod:`.loop`).
 """
 from __future__ import annotations
 

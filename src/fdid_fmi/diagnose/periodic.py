@@ -11,11 +11,9 @@ longest segment). Parameter: lambda = 1 / kappa_peak, refined by the LS objectiv
 with sin/cos(2 pi x / lambda) inputs and the poles fixed, scanned over +-12 % of the peak in 0.2 %
 steps with a parabolic refinement (the phase coherence over the whole record makes this sharp).
 
-Threshold ``PEAK_RATIO`` (calibration: ``examples/diagnose_calibrate.py``, 15 clean virtual-drive
-runs): clean runs up to 6.4; a 40 N force of 5 mm period gives about 140. Recalibrated with the
-causal models (``examples/diagnose_calibrate.py --effects --plant2``): virtual clean up to 6.30
-(1.2 x = 7.6), virtual periodic 140; second plant (tests/plant2) clean up to 6.74 (9 runs, none
-above 15), its 40 N / 5 mm force 208: 15 separates both plants either way.
+Threshold: ``thresholds.THRESHOLDS["periodic_position"]`` (a 5 % false-alarm rate on the plant
+family's clean calibration cases). Measured on thesis-path models: virtual clean up to 6.30, its
+40 N / 5 mm force 140; plant2 clean up to 6.74 (9 runs), its 40 N / 5 mm force 208.
 """
 from __future__ import annotations
 
