@@ -91,8 +91,13 @@ def ramp():
 def test_a_candidate_below_its_threshold_is_tried_when_the_held_out_residual_is_structured(ramp, monkeypatch):
     model, tr, va = ramp
     monkeypatch.setattr(loop, "UNEXPLAINED_SHARE", 0.0)         # every residual counts as structured
+    monkeypatch.setattr(loop, "MIN_BELOW_RATIO", 0.0)           # however far below its threshold
     monkeypatch.setitem(THRESHOLDS, "channel", Threshold(0.999, None, 0, "test", "R^2"))
     d = diagnose(model, tr, va, detectors=["coupling"], maxiter=2, max_steps=1)
+    (trial,) = d.rounds[0]["trials"]
+    assert trial["below_threshold"]
+    if trial["criterion_met"]:       # below its threshold a kept effect also gains on training
+        assert max(trial["gain_train"].values()) >= 0.05
     (row,) = [r for r in candidate_table(d.rounds) if r["kind"] == "extra_input"]
     assert not row["detected"] and row["tried_below_threshold"] and row["refitted"]
     assert row["outcome"] != "below threshold" and row["gain_val"] is not None
@@ -104,9 +109,12 @@ def test_a_candidate_below_its_threshold_is_tried_when_the_held_out_residual_is_
     assert row0["outcome"] == "below threshold" and not row0["tried_below_threshold"] and not d0.rounds[0]["trials"]
 
 
-def test_a_white_held_out_residual_tries_nothing_below_the_thresholds(ramp, monkeypatch):
+@pytest.mark.parametrize("share, ratio", [(1.01, 0.0), (0.0, 1.0)])
+def test_a_white_held_out_residual_or_a_weak_statistic_tries_nothing_below_the_thresholds(
+        ramp, monkeypatch, share, ratio):
     model, tr, va = ramp
-    monkeypatch.setattr(loop, "UNEXPLAINED_SHARE", 1.01)        # no residual is that structured
+    monkeypatch.setattr(loop, "UNEXPLAINED_SHARE", share)       # 1.01: no residual is that structured
+    monkeypatch.setattr(loop, "MIN_BELOW_RATIO", ratio)         # 1.0: every candidate below it is too weak
     monkeypatch.setitem(THRESHOLDS, "channel", Threshold(0.999, None, 0, "test", "R^2"))
     d = diagnose(model, tr, va, detectors=["coupling"], maxiter=2, max_steps=1)
     assert not d.rounds[0]["trials"]
