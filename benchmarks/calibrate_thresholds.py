@@ -99,7 +99,7 @@ def run_case(seed, args, refits):
     return row
 
 
-def plant_runs(args, refits):
+def plant_runs(args, refits, save=lambda runs: None):
     """Every detector's statistic (thresholds infinite) on the scenarios of plant2 (seed 0) and of
     the virtual drive, each on its default-path model (``identify_auto``, what ``fdid identify``
     fits, with the calibration's iterations): [{plant, scenario, expected kind or None, stats}]."""
@@ -131,6 +131,7 @@ def plant_runs(args, refits):
         row["wall_s"] = time.perf_counter() - t0
         print(f"[{plant} {name}] {row.get('structure') or row.get('error')} ({row['wall_s']:.0f} s)", flush=True)
         out.append(row)
+        save(out)           # partial results survive an interrupted run
     return out
 
 
@@ -201,6 +202,8 @@ def main(argv=None):
                     "drive's scenarios (default-path models) against the calibrated thresholds")
     ap.add_argument("--plant-maxiter", type=int, default=8, help="iterations of the detectors' own refits "
                     "on the plants' scenarios (default 8, as the calibration's)")
+    ap.add_argument("--plants-out", default="calibrate_thresholds_plants.json", help="file name of "
+                    "--plants' results in benchmarks/results")
     ap.add_argument("--plant-scenarios", default="", help="comma-separated plant:scenario (e.g. "
                     "plant2:delay,virtual:mode; default every one)")
     ap.add_argument("--skip-family", action="store_true", help="no family cases: the calibration table "
@@ -218,11 +221,15 @@ def main(argv=None):
         print_table(tab)
         if args.plants and args.skip_family:
             t0 = time.perf_counter()
+            path = OUT / args.plants_out
+            code = code_state("src")
+
+            def save(runs):
+                path.write_text(json.dumps({"code": code, "plants": runs, "wall_s": time.perf_counter() - t0},
+                                           indent=1, default=float))
+
             with Refits(args.jobs) as refits:
-                plants = plant_runs(args, refits)
-            path = OUT / "calibrate_thresholds_plants.json"
-            path.write_text(json.dumps({"code": code_state("src"), "plants": plants,
-                                        "wall_s": time.perf_counter() - t0}, indent=1, default=float))
+                plants = plant_runs(args, refits, save)
             print(f"JSON: {path}")
         if plants:
             print_plants(plants, tab)
