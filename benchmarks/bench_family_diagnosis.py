@@ -306,6 +306,46 @@ def print_rates(rows):
     return rt
 
 
+LIMITS = ("not checked", "statistic below its threshold, not tried", "tried below its threshold, not kept",
+          "past its gate, not kept", "another kind kept instead")
+
+
+def limit_of(r, kind):
+    """Why an effect of a case was not named: the furthest any of its candidates got (one of
+    ``LIMITS``), over every round; "another kind kept instead" when its candidates got no further
+    than a trial and a kind the case does not have was named."""
+    cs = [c for c in r.get("candidates", []) if c["kind"] == kind]
+    wrong = any(e["kind"] not in r["kinds"] for e in r.get("named", []))
+    if any(c.get("refitted") and not c.get("tried_below_threshold") for c in cs):
+        why = LIMITS[3]
+    elif any(c.get("tried_below_threshold") for c in cs):
+        why = LIMITS[2]
+    elif any(not c.get("not_checked") for c in cs):
+        why = LIMITS[1]
+    else:
+        why = LIMITS[0]
+    return LIMITS[4] if wrong and why in LIMITS[2:4] else why
+
+
+def print_limits(rows):
+    """Per kind: the effects not named, counted by what stopped them (:func:`limit_of`)."""
+    tab = {k: Counter() for k in KINDS}
+    for r in rows:
+        if "error" in r:
+            continue
+        named = {e["kind"] for e in r.get("named", [])}
+        for e in r["truth"]:
+            if e["kind"] not in named:
+                tab[e["kind"]][limit_of(r, e["kind"])] += 1
+    print("\n### What stopped the effects not named\n")
+    print("| kind | " + " | ".join(LIMITS) + " |")
+    print("|---|" + "---:|" * len(LIMITS))
+    for k, c in tab.items():
+        if sum(c.values()):
+            print(f"| {k} | " + " | ".join(str(c[x]) for x in LIMITS) + " |")
+    return {k: dict(c) for k, c in tab.items()}
+
+
 def missed(r):
     """Per true effect not named: what its detector's candidates came to (outcome, statistic /
     threshold, best held-out gain), from the candidate table of every round."""
@@ -377,6 +417,7 @@ def print_tables(res):
     named = ", ".join(f"{n} ×{c}" for n, c in clean["named"].items()) or "—"
     print(f"\nClean cases: {clean['cases']}, false alarms {clean['false_alarms']} (named: {named})")
     print_rates(rows)
+    print_limits(rows)
     lines = [(r["seed"], k, "; ".join(v)) for r in rows if "error" not in r for k, v in missed(r).items()]
     if lines:
         print("\n### Effects not named: what their candidates came to\n")
