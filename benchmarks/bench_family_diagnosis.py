@@ -11,7 +11,10 @@ effects on axis x):
    (confusion); on clean cases, false alarms; the held-out RMS of the position residual before and
    after; the fitted parameter against the true one (period, v_s, dead time, frequency, lost
    motion, channel); the first round's statistic / threshold of every detector, and (in the JSON)
-   every candidate of every round with its held-out gain and outcome. How visible
+   every candidate of every round with its held-out gain and outcome; per kind the detection
+   rate against the effect's visibility, its detectability bound (the smallest magnitude above
+   which at least 90 % of the cases are named, in physical units and over the noise), the
+   false-alarm rate, the wrong-effect rate and the confusion matrix (:func:`rates`). How visible
    each effect is: the RMS shift of the motor-encoder channel of the first training trace it
    causes (the case rebuilt without it, ``family.visibility``), over the encoder noise.
 
@@ -22,7 +25,7 @@ one thread.
     .venv/bin/python benchmarks/bench_family_diagnosis.py --quick
     .venv/bin/python benchmarks/bench_family_diagnosis.py [--cases N] [--split calibration|held-out|all]
         [--start SEED] [--seeds 3,5,8] [--maxiter N] [--identify-maxiter N] [--scale F] [--jobs N]
-        [--out NAME.json]
+        [--below-trials N] [--out NAME.json]
     .venv/bin/python benchmarks/bench_family_diagnosis.py --print-only bench_family_diagnosis.json
 
 ``--quick``: 3 cases (unless ``--cases`` says otherwise), traces at 0.5 of their length,
@@ -51,6 +54,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from family import KINDS, case, seeds, visibility  # noqa: E402
+from family.cases import UNITS  # noqa: E402
 from fdid_fmi.diagnose import diagnose  # noqa: E402
 from fdid_fmi.diagnose.limits import NoteKind  # noqa: E402
 from fdid_fmi.diagnose.reporting import candidate_table  # noqa: E402
@@ -150,7 +154,8 @@ def run_case(seed, args):
             out["structure"] = ch.get("chosen")
             print(f"  identified: {out['structure']} ({out['identify_s']:.0f} s)", flush=True)
             t2 = time.perf_counter()
-            d = diagnose(model, c.train[0], c.val[0], maxiter=args.maxiter, workers=args.jobs)
+            d = diagnose(model, c.train[0], c.val[0], maxiter=args.maxiter, workers=args.jobs,
+                         below_trials=args.below_trials)
             out["diagnose_s"] = time.perf_counter() - t2
     except Exception as exc:
         out["error"] = _err(exc)
@@ -215,6 +220,133 @@ def summarise(rows):
     return per, clean
 
 
+# visibility bins (the effect's shift of the encoder channel over its noise) the detection rate is
+# tabulated against; a bound needs at least MIN_ABOVE cases at or above it
+VIS_BINS = (0.0, 1.0, 3.0, 10.0, 30.0, math.inf)
+MIN_ABOVE = 3
+DETECTED = 0.9
+
+
+def detectability_bound(pairs, share=DETECTED, min_above=MIN_ABOVE):
+    """The smallest magnitude above which at least ``share`` of the cases are named.
+
+    Parameters
+    ----------
+    pairs : [(magnitude, named)] of one effect kind
+    share, min_above : the bound is the smallest case magnitude m such that of the cases with
+        magnitude >= m (at least ``min_above`` of them) at least ``share`` are named
+
+    Returns
+    -------
+    float, or None ("not reached")
+    """
+    pts = sorted((float(m), bool(n)) for m, n in pairs if m is not None)
+    for i, (m, _) in enumerate(pts):
+        above = [n for _, n in pts[i:]]
+        if len(above) >= min_above and sum(above) >= share * len(above):
+            return m
+    return None
+
+
+def rates(rows):
+    """Per kind: named against magnitude (physical units) and visibility bins, the detectability
+    bound; over the cases: false-alarm rate (clean cases naming anything), wrong-effect rate (effect
+    cases naming a kind they do not have) and the confusion matrix (true kind -> named kinds, or
+    none)."""
+    per = {k: [] for k in KINDS}
+    confusion = {k: Counter() for k in KINDS}
+    clean = effect = fa = wrong = 0
+    for r in rows:
+        if "error" in r:
+            continue
+        named = [e["kind"] for e in r["named"]]
+        if not r["kinds"]:
+            clean += 1
+            fa += bool(named)
+            continue
+        effect += 1
+        wrong += any(n not in r["kinds"] for n in named)
+        for e in r["truth"]:
+            k = e["kind"]
+            vis = (r.get("visibility") or {}).get(k, {}).get("noise_ratio")
+            per[k].append((e["magnitude"], vis, k in named))
+            confusion[k].update(named or ["none"])
+    out = {}
+    for k, pts in per.items():
+        bins = []
+        for lo, hi in zip(VIS_BINS, VIS_BINS[1:]):
+            sel = [n for _, v, n in pts if v is not None and lo <= v < hi]
+            bins.append({"lo": lo, "hi": hi, "cases": len(sel), "named": sum(sel)})
+        out[k] = {"cases": len(pts), "named": sum(n for *_, n in pts), "bins": bins,
+                  "bound": detectability_bound([(m, n) for m, _, n in pts]),
+                  "bound_noise_ratio": detectability_bound([(v, n) for _, v, n in pts]),
+                  "unit": UNITS[k], "confusion": dict(confusion[k])}
+    return {"per_kind": out, "clean_cases": clean, "false_alarms": fa,
+            "false_alarm_rate": fa / clean if clean else None, "effect_cases": effect, "wrong_effect": wrong,
+            "wrong_effect_rate": wrong / effect if effect else None}
+
+
+def print_rates(rows):
+    rt = rates(rows)
+    print("\n### Detection against magnitude\n")
+    print("Named / cases per visibility bin (the effect's RMS shift of the encoder channel over its noise); "
+          f"bound: the smallest magnitude above which ≥ {DETECTED:.0%} of at least {MIN_ABOVE} cases are named.\n")
+    heads = [f"{lo:g}–{hi:g}×" if np.isfinite(hi) else f"≥ {lo:g}×" for lo, hi in zip(VIS_BINS, VIS_BINS[1:])]
+    print("| kind | named | " + " | ".join(heads) + " | bound (physical) | bound (× noise) | named as (confusion) |")
+    print("|---|---:|" + "---:|" * len(heads) + "---:|---:|---|")
+    for k, s in rt["per_kind"].items():
+        cells = [f"{b['named']}/{b['cases']}" if b["cases"] else "" for b in s["bins"]]
+        bound = "not reached" if s["bound"] is None else f"{s['bound']:.3g} {s['unit']}"
+        bvis = "not reached" if s["bound_noise_ratio"] is None else f"{s['bound_noise_ratio']:.3g}"
+        conf = ", ".join(f"{n} ×{c}" for n, c in sorted(s["confusion"].items())) or "—"
+        print(f"| {k} | {s['named']}/{s['cases']} | " + " | ".join(cells) + f" | {bound} | {bvis} | {conf} |")
+    fr, wr = rt["false_alarm_rate"], rt["wrong_effect_rate"]
+    print(f"\nFalse alarms: {rt['false_alarms']} of {rt['clean_cases']} clean cases"
+          + (f" ({fr:.0%})" if fr is not None else "") + f"; a wrong effect named in {rt['wrong_effect']} of "
+          f"{rt['effect_cases']} effect cases" + (f" ({wr:.0%})" if wr is not None else ""))
+    return rt
+
+
+LIMITS = ("not checked", "statistic below its threshold, not tried", "tried below its threshold, not kept",
+          "past its gate, not kept", "another kind kept instead")
+
+
+def limit_of(r, kind):
+    """Why an effect of a case was not named: the furthest any of its candidates got (one of
+    ``LIMITS``), over every round; "another kind kept instead" when its candidates got no further
+    than a trial and a kind the case does not have was named."""
+    cs = [c for c in r.get("candidates", []) if c["kind"] == kind]
+    wrong = any(e["kind"] not in r["kinds"] for e in r.get("named", []))
+    if any(c.get("refitted") and not c.get("tried_below_threshold") for c in cs):
+        why = LIMITS[3]
+    elif any(c.get("tried_below_threshold") for c in cs):
+        why = LIMITS[2]
+    elif any(not c.get("not_checked") for c in cs):
+        why = LIMITS[1]
+    else:
+        why = LIMITS[0]
+    return LIMITS[4] if wrong and why in LIMITS[2:4] else why
+
+
+def print_limits(rows):
+    """Per kind: the effects not named, counted by what stopped them (:func:`limit_of`)."""
+    tab = {k: Counter() for k in KINDS}
+    for r in rows:
+        if "error" in r:
+            continue
+        named = {e["kind"] for e in r.get("named", [])}
+        for e in r["truth"]:
+            if e["kind"] not in named:
+                tab[e["kind"]][limit_of(r, e["kind"])] += 1
+    print("\n### What stopped the effects not named\n")
+    print("| kind | " + " | ".join(LIMITS) + " |")
+    print("|---|" + "---:|" * len(LIMITS))
+    for k, c in tab.items():
+        if sum(c.values()):
+            print(f"| {k} | " + " | ".join(str(c[x]) for x in LIMITS) + " |")
+    return {k: dict(c) for k, c in tab.items()}
+
+
 def missed(r):
     """Per true effect not named: what its detector's candidates came to (outcome, statistic /
     threshold, best held-out gain), from the candidate table of every round."""
@@ -226,7 +358,8 @@ def missed(r):
             continue
         cs = [c for c in r.get("candidates", []) if c["kind"] == k]
         out[k] = [f"{c['label']} round {c['round']}: " + (
-            f"{c['outcome']} ({c['statistic'] / c['threshold']:.2f}× threshold"
+            f"{c['outcome']}{' (tried below its threshold)' if c.get('tried_below_threshold') else ''} "
+            f"({c['statistic'] / c['threshold']:.2f}× threshold"
             + (f", held-out {c['best_gain_val']:+.1%}" if c.get("best_gain_val") is not None else "") + ")"
             if c["threshold"] and np.isfinite(c["statistic"]) and np.isfinite(c["threshold"])
             else f"gate closed (statistic {c['statistic']:.3g}, threshold {c['threshold']:.3g}"
@@ -284,6 +417,8 @@ def print_tables(res):
               f"{_f(float(np.median(g)) if g else None, '{:+.1%}')} | {mags} |")
     named = ", ".join(f"{n} ×{c}" for n, c in clean["named"].items()) or "—"
     print(f"\nClean cases: {clean['cases']}, false alarms {clean['false_alarms']} (named: {named})")
+    print_rates(rows)
+    print_limits(rows)
     lines = [(r["seed"], k, "; ".join(v)) for r in rows if "error" not in r for k, v in missed(r).items()]
     if lines:
         print("\n### Effects not named: what their candidates came to\n")
@@ -318,6 +453,8 @@ def main(argv=None):
     ap.add_argument("--identify-maxiter", type=int, default=None,
                     help="DE iterations of the identification (default: identify_auto's)")
     ap.add_argument("--scale", type=float, default=1.0, help="trace length factor (family.case(scale=...))")
+    ap.add_argument("--below-trials", type=int, default=0, help="candidates tried below their "
+                    "thresholds per round (diagnose(below_trials=...); default 0, as diagnose)")
     ap.add_argument("--jobs", type=int, default=2, help="worker processes of identification and diagnosis")
     ap.add_argument("--quick", action="store_true", help="3 cases, half-length traces, 8 generations "
                     "(identification and refits)")
@@ -356,7 +493,7 @@ def main(argv=None):
     res["wall_s"] = time.perf_counter() - t0
     per, clean = summarise(res["cases"])
     res["summary"] = {"per_kind": {k: {**v, "instead": dict(v["instead"])} for k, v in per.items()},
-                      "clean": {**clean, "named": dict(clean["named"])}}
+                      "clean": {**clean, "named": dict(clean["named"])}, "rates": rates(res["cases"])}
     save()
     text = tables_text(res)
     print(text)

@@ -17,6 +17,7 @@ from checks import ROOT, check
 from fdid_fmi.diagnose import augment as ag
 from fdid_fmi.diagnose import diagnose
 from fdid_fmi.diagnose.residuals import residuals
+from fdid_fmi.diagnose.thresholds import threshold
 from fdid_fmi.diagnose.limits import REVERSAL_SUSPECT, NoteKind
 from fdid_fmi.identify import identify_siso
 from plant2 import scenarios as p2
@@ -236,4 +237,4 @@ def on_a_clean_default_model_no_shift_wins_the_parsimony_margin():
     assert not early.detected and not free.detected
     R = free.evidence["refined_free_run_rms_um_by_shift"]
     assert np.isfinite(R).all() and not free.not_checked     # every shift refitted: not passed vacuously
-    assert min(R[1:]) > R[0] / delay.FREE_RUN_RATIO      # measured: 0.220 um, every shift 0.250-0.263
+    assert min(R[1:]) > R[0] / threshold("delay (refined free run)")      # measured: 0.220 um, every shift 0.250-0.263

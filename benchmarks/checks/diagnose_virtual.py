@@ -15,6 +15,7 @@ from checks import check
 from fdid_fmi.diagnose import diagnose
 from fdid_fmi.diagnose.limits import NoteKind
 from fdid_fmi.diagnose.scenarios import INTEGRAL_ACTION, scenario
+from fdid_fmi.diagnose.thresholds import threshold
 from fdid_fmi.identify import identify_siso
 
 
@@ -80,14 +81,13 @@ def stribeck_on_the_default_structure():
     part of the breakaway, and the residual's concentration at motion ends (2.01) falls below
     the largest clean thesis-path value (2.17). The Stribeck gate is a floor (1.0), so
     the refit is tried and the held-out criterion keeps it (measured: 0.396 -> 0.360 um)."""
-    from fdid_fmi.diagnose import friction
     tr, va = scenario("stribeck")
     m = _default_candidate(tr, "r2c2", "cubic")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         d = diagnose(m, tr, va, detectors=["friction"])
     stat = next(c["statistic"] for c in d.rounds[0]["candidates"] if c["kind"] == "stribeck")
-    assert friction.STRIBECK_RATIO <= stat < 2.6          # under the old gate: tried only now
+    assert threshold("stribeck") <= stat < 2.6          # below the thesis-path clean runs' 2.6: the gate must pass it
     assert [e["kind"] for e in d.effects_added] == ["stribeck"]
     assert d.effects_added[0]["ratio_to_coulomb"] > 0      # breakaway ABOVE Coulomb
     assert _val_gain(d) >= 0.05                            # the keep criterion; measured: 9 %
@@ -166,7 +166,7 @@ def asymmetric_coulomb_under_a_structure_with_integral_action():
     leaves no offset to see (|t| 0.13). The detector then looks at the model's twin without
     integral action, refitted (|t| 5.7), and the term goes on that twin (measured: 1.10 -> 0.61 um
     held out)."""
-    from fdid_fmi.diagnose import augment as ag, friction
+    from fdid_fmi.diagnose import augment as ag
     tr, va = scenario("asymmetric")
     m = _default_candidate(tr, "r1c2", "cubic")
     assert ag.has_integral_action(ag.recipe_from_model(m), "x")
@@ -174,7 +174,7 @@ def asymmetric_coulomb_under_a_structure_with_integral_action():
         warnings.simplefilter("ignore")
         d = diagnose(m, tr, va, detectors=["friction"])
     (c,) = [c for c in d.rounds[0]["candidates"] if c["kind"] == "asymmetric_friction"]
-    assert c["evidence"]["t_p_loop_twin"] >= friction.ASYM_T
+    assert c["evidence"]["t_p_loop_twin"] >= threshold("asymmetric_friction")
     assert [e["kind"] for e in d.effects_added] == ["asymmetric_friction"]
     assert d.effects_added[0]["ratio_to_coulomb"] < 0      # more friction in the negative direction
     assert not ag.has_integral_action(ag.recipe_from_model(d.final), "x")
@@ -199,9 +199,9 @@ def dead_time_statistics_separate_a_delay_from_its_clean_twin(name, delayed):
                       res=[residuals(m, tr)], settings={"maxiter": 20})
         early, free = delay.detect(ctx)
     chi2 = early.evidence["early_response_chi2_by_shift"]
-    assert free.threshold == pytest.approx(1 / 0.95) and free.from_current and free.search == "local"
+    assert free.threshold == pytest.approx(threshold("delay (refined free run)")) and free.from_current and free.search == "local"
     if delayed:     # measured: statistic 176, 4 samples (chi-square 1014 at no shift, 5.8 at 4)
-        assert early.detected and early.statistic > 20 * delay.RATIO
+        assert early.detected and early.statistic > 20 * threshold("delay (early answer)")
         assert early.params["samples"] in (3, 4)
         # measured: 1.37 at 3 samples (free run 0.384 um without a shift, 0.280 at 3)
         assert free.detected and free.params["samples"] in (3, 4)

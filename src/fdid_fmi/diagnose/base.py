@@ -1,26 +1,11 @@
 """What every detector returns: a :class:`Candidate` (evidence, estimated parameters, the
 augmented recipe to refit), and the :class:`Context` the detectors read.
 
-Evidence is one statistic compared with a threshold; the thresholds were calibrated on clean
-virtual-drive runs (``examples/diagnose_calibrate.py`` reproduces the numbers quoted in each
-detector's docstring): each threshold is set above the largest value seen on clean data, with
-margin, so that a clean model passes no gate. A gate only decides which effects are *tried*: the
-held-out criterion of :mod:`.loop` decides what is kept.
-
-Transfer (``examples/diagnose_calibrate.py --effects --plant2``, causal models): the periodic (15),
-coupling (0.15) and asymmetric-friction (4) gates keep the
-second plant's (tests/plant2) 9 clean runs below them and pass its periodic and coupling runs (it
-has no asymmetric run); the margin matters for coupling: 1.2 x the largest clean virtual value
-(0.00054) would flag every plant2 clean run (up to 0.011). The mode gate (0.27) passes both plant2
-modes (flexible_y 0.29, mode 0.34) and no plant2 clean run (up to 0.044; one run has read 0.42).
-The Stribeck statistic separates neither plant (plant2's LuGre friction puts every clean run
-above any virtual-drive gate, and on ``fdid identify``'s default models the virtual Stribeck run
-reads below the virtual clean maximum): its gate is a floor (1.0), and the refit decides
-(:mod:`.friction`). The dead-time gate of the early-answer statistic keeps both plants' clean
-runs below it and passes the virtual delay, not plant2's on the thesis path's model; the
-second statistic (the refined refits' free run, gated by the structure choice's 5 % margin)
-passes plant2's too, on both paths, and no clean run of either plant (figures in each detector's
-docstring).
+Evidence is one statistic compared with a threshold (:mod:`.thresholds`: one table, each value
+set from a stated false-alarm rate on clean cases of the plant family's calibration half). A gate
+only decides which effects are tried first: the held-out criterion of :mod:`.loop` decides what
+is kept, and when the held-out residual is structured the strongest candidates below their gates
+are tried as well.
 """
 from __future__ import annotations
 
@@ -55,6 +40,10 @@ class Candidate:
     not_checked : why the detector could not test for the effect on these data ('' when it
            could); such a candidate is never detected, and the diagnosis reports it as a note
            (``not_checked``, :mod:`.limits`) instead of "nothing found"
+    prepare : callable without arguments, optional -- builds ``recipe`` (and ``reference``, and
+           the parameters a refit needs, e.g. a Stribeck velocity's scan) as a detected candidate
+           gets them; the loop calls it for a candidate below its threshold that it tries all the
+           same (:data:`.loop.UNEXPLAINED_SHARE`). None: nothing could be tried
     """
 
     kind: str
@@ -71,6 +60,7 @@ class Candidate:
     note: str = ""
     reference: object = None
     not_checked: str = ""
+    prepare: object = field(default=None, repr=False, compare=False)
 
     @property
     def label(self):

@@ -15,8 +15,8 @@ Evidence 3, the refined free run: each shift refitted once more, locally from th
 current poles with the engine's friction refinement, as the given model was fitted; R_k its
 training free-run RMS (R_0 also the given model's), the statistic R_0 / R_k* with the same rule.
 A dead time is one more structural parameter: like a structure with more parameters in the
-structure choice it must lower the free run by the ``PARSIMONY`` margin (gate 1 / (1 - 0.05)),
-and its trial refit is that same local fit. Each statistic is a candidate of its own; when both
+structure choice it must lower the free run by a margin (the gate), and its trial refit is that
+same local fit. Each statistic is a candidate of its own; when both
 name the same shift there is one trial, the early answer's (a wide search:
 the virtual drive's default path is measured with it).
 
@@ -42,30 +42,28 @@ phase 2 pi f d Ts differs from what the poles can mimic; on gentle moves (2000 m
 mm/s^3) the chi-square is flat in k, and the loop correctly adds nothing. Its size is known to
 about one sample: on plant2 the shifts' fits scatter (a search ends anywhere in a flat valley).
 
-Threshold ``RATIO`` 2.3 of the early answer (``examples/diagnose_calibrate.py --effects --plant2``,
-thesis-path models): 1.2 x the largest of the 15 clean virtual-drive runs (1.89, clean_fast seed
-3, at k = 1). Measured on the second plant (tests/plant2), where it was not set: its 9 clean runs
-1.00-2.09, none passes; its 3-sample delay 2.02 on the thesis path's model (seed 0, missed
-there; seeds 1 and 2: 3.94, 4.51). The virtual 3-sample delay reads 120; a plant2-calibrated
-threshold (2.5) passes no clean virtual run.
+Thresholds: ``thresholds.THRESHOLDS["delay (early answer)"]`` and ``["delay (refined free
+run)"]`` (a 5 % false-alarm rate on the plant family's clean calibration cases, whose default
+models' early answer reaches 49 and free-run ratio 1.65). Measured on thesis-path models of the two
+plants the project wrote: virtual clean runs up to 1.89 (early answer), its 3-sample delay 120;
+plant2's 9 clean runs 1.00-2.09, its 3-sample delay 2.02 (seed 0; seeds 1 and 2: 3.94, 4.51).
+Below the thresholds the loop's trials and the held-out criterion decide (:mod:`.loop`).
 """
 from __future__ import annotations
+
+from functools import partial
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy.linalg import solve_triangular
 
 from ..errors import InputError
-from ..identify.choose_structure import PARSIMONY
 from . import augment as ag
 from .residuals import residuals
 from .base import Candidate, command_velocity
+from .thresholds import threshold
 
 MAX_DELAY = 6
-RATIO = 2.3         # 1.2 x the largest clean virtual-drive statistic (module docstring)
-# the refined free run: a dead time is one more structural parameter, and must lower the free run
-# by the structure choice's margin, as a structure with more parameters must (module docstring)
-FREE_RUN_RATIO = 1.0 / (1.0 - PARSIMONY)
 FIR_SECONDS = 0.1       # the FIR covers the closed loop's response to a command step (s)
 
 
@@ -234,11 +232,11 @@ def detect(ctx):
         X, F, R = _profiles(ctx, a, kmax, maxiter)
         evidence = {"early_response_chi2_by_shift": X.tolist(), "free_run_rms_um_by_shift": F.tolist(),
                     "refined_free_run_rms_um_by_shift": R.tolist(), "xcorr_peak_lag": int(lag), "xcorr_peak": rho}
-        early = _candidate(ctx, a, X, RATIO, "early answer", evidence,
+        early = _candidate(ctx, a, X, threshold("delay (early answer)", ctx.settings), "early answer", evidence,
                            "chi-square of the residual's early response to the command, without / with "
                            "the best command shift", search="wide")
         # its trial is the refit that showed the shift
-        free = _candidate(ctx, a, R, FREE_RUN_RATIO, "refined free run", evidence,
+        free = _candidate(ctx, a, R, threshold("delay (refined free run)", ctx.settings), "refined free run", evidence,
                           "training free-run RMS of the refined refits, without / with the best command "
                           "shift (a shift must win by the structure choice's parsimony margin)",
                           search="local", from_current=True)
@@ -267,9 +265,15 @@ def _candidate(ctx, a, profile, threshold, name, evidence, note, **trial):
     k_star, stat, edge = shift_statistic(profile)
     cand = Candidate("delay", a, stat, threshold, params={"samples": k_star}, statistic_name=name,
                      evidence=dict(evidence, best_shift_on_range_edge=edge), note=note, **trial)
+    if k_star and not edge:     # a shift that helped, inside the range tried
+        cand.prepare = partial(_prepare, cand, ctx.recipe, a, k_star)
     if cand.detected:
-        cand.recipe = ag.add_delay(ctx.recipe, a, k_star)
-        # one sample of delay is what separates the hold and quadratic same-sample forms of a
-        # causal model: a dead time must also beat the model in the other form
-        cand.reference = ag.other_same_sample(ctx.recipe)
+        cand.prepare()
     return cand
+
+
+def _prepare(cand, recipe, a, k_star):
+    cand.recipe = ag.add_delay(recipe, a, k_star)
+    # one sample of delay is what separates the hold and quadratic same-sample forms of a
+    # causal model: a dead time must also beat the model in the other form
+    cand.reference = ag.other_same_sample(recipe)

@@ -39,34 +39,18 @@ Backlash / lost motion (needs a tool-side channel)
     (``augment.keep_base_outputs``), and it must beat the same tool-side output without the
     backlash input (``reference``).
 
-Thresholds (calibration: ``examples/diagnose_calibrate.py``, 15 clean virtual-drive runs --
-gentle and fast moves, a softer velocity loop, two uncoupled axes, a P loop, 3 seeds each): the largest
-clean values were 2.35 (concentration; Stribeck data: 3.5-4) and 2.0 (|t| asymmetry; the
-asymmetric P-loop data: 5.5); hence
-a separating Stribeck gate of 2.6 (the gate is a floor of 1.0, below) and ``ASYM_T`` = 4. The clean
-runs have no tool channel; the tool-side
-statistic was 2.1 on the backlash data once the backlash was modelled and 5.8 on a two-mass axis
-without backlash (tool-side dynamics, not lost motion), against 73 with 20 µm backlash: hence
-``BACKLASH_T`` = 8.
-
-Recalibrated with the causal models (``examples/diagnose_calibrate.py --effects --plant2``):
-virtual clean up to 2.17 (concentration, clean_soft seed 5; 1.2 x = 2.60, the separating gate) and
-3.11 (|t|, clean_p seed 3; 1.2 x = 3.73 < 4); virtual Stribeck 3.27, asymmetric P loop 6.84,
-backlash 69. The second plant (tests/plant2, LuGre friction) does NOT transfer for Stribeck: its 9
-clean runs give 6.55-17.7 (all above 2.6: LuGre's own breakaway is what the statistic sees) and
-its Stribeck run 13.1, inside that range; no threshold separates them there, and 1.2 x its clean
-maximum (21.2) would miss the virtual Stribeck. Its clean |t| stays below 1.62 (no asymmetric
-run there). Tool side on plant2: backlash 21.7, the 38 Hz tool-side mode without backlash 11.8
-(tried; the held-out criterion and the reference decide).
-
-The Stribeck gate is 1.0, a floor, not a separation: the concentration only
-asks that the residual sit at the ends of the moves more than elsewhere, and the refit with its
-held-out criterion and the plausibility check (the breakaway excess must be positive) decide. On
-``fdid identify``'s default models the statistic separates neither plant: the virtual Stribeck
-run's chosen r2c2 reads 2.01, below the thesis-path clean maximum (2.17), and its refit is 9 %
-better held out (0.396 -> 0.360 um, kept); the virtual clean runs' default models read 1.20-1.55
-and nothing is kept on them; plant2's runs read 8-52 (all above the separating gate as well), its
-periodic run 0.39-0.46 (not tried).
+Thresholds: ``thresholds.THRESHOLDS`` (``stribeck``, ``asymmetric_friction``, ``backlash``; a 5 %
+false-alarm rate on the plant family's clean calibration cases, the asymmetry's statistic with its
+P-loop twin's). Measured on the two plants the project wrote, thesis-path models: concentration
+on virtual clean runs up to 2.17, its Stribeck run 3.27; plant2 (LuGre friction) clean runs
+6.55-17.7 (LuGre's own breakaway is what the statistic sees), its Stribeck run 13.1, inside that
+range; on ``fdid identify``'s default models the virtual Stribeck run reads 2.01, its clean runs
+1.20-1.55, plant2's runs 8-52. |t| of the asymmetry: virtual clean up to 3.11 (twins 0.41-1.46),
+its asymmetric P loop 6.84 (the default r1c2's twin 5.70); plant2 clean up to 1.62. Tool side:
+virtual backlash 69, a two-mass axis without backlash 5.8; plant2 backlash 21.7, its 38 Hz
+tool-side mode 11.8. The concentration separates neither plant: below the threshold the loop's
+trials, the held-out criterion and the plausibility check (the breakaway excess must be positive)
+decide (:mod:`.loop`).
 """
 from __future__ import annotations
 
@@ -80,11 +64,9 @@ from ..model import is_play
 from . import augment as ag
 from .base import Candidate, command_velocity, motion_events, scan_refine
 from .residuals import residuals
+from .thresholds import threshold
 
 WINDOW_S = 0.04
-STRIBECK_RATIO = 1.0      # a floor: the refit decides (module docstring)
-ASYM_T = 4.0
-BACKLASH_T = 8.0
 MIN_MOVES = 3           # moves the t statistics need
 
 
@@ -196,26 +178,27 @@ def _detect_axis(ctx, a):
     me, tm = _move_offsets(ctx.res, a, Ts, w)
     cands = []
     ratio = concentration(ctx.res, a, Ts, rest="pooled")
-    cand = Candidate("stribeck", a, ratio, STRIBECK_RATIO,
+    cand = Candidate("stribeck", a, ratio, threshold("stribeck", ctx.settings),
                      evidence={"window_s": WINDOW_S, "events": int(me.size)},
                      note="residual energy in the 40 ms after motion starts/stops over the rest")
     if not any(_has_windows(res.axes[a], Ts, w) for res in ctx.res):
         cand.not_checked = ("the training trace has no motion start or stop with samples both in and "
                             "after the 40 ms window that follows it")
+    else:
+        cand.prepare = partial(_prepare_stribeck, cand, ctx, a)
     if cand.detected:
-        cand.params["v_s_mm_s"] = _best_vs(ctx, a, ctx.recipe)
-        cand.recipe = ag.add_stribeck(ctx.recipe, a, cand.params["v_s_mm_s"])
+        cand.prepare()
     cands.append(cand)
     own = [s for s in ctx.recipe.inputs if s.axis == a]
     if cand.detected and any(s.kind == "friction" for s in own) and not any(map(is_play, own)):
         cands.append(_play_law_candidate(ctx, a, cand))     # a sat-law axis without a play
 
     t_even = _t(me)
-    cand = Candidate("asymmetric_friction", a, abs(t_even), ASYM_T,
+    cand = Candidate("asymmetric_friction", a, abs(t_even), threshold("asymmetric_friction", ctx.settings),
                      params={"mean_offset_um": float(np.mean(me) * 1e3) if me.size else 0.0},
                      note="|t| of the direction-independent mean residual over moves")
     has_friction = ctx.model.input_index("friction", a) is not None
-    base = ctx.recipe
+    twin_used = None
     if me.size < MIN_MOVES:
         cand.not_checked = f"the training trace has {me.size} move(s); the t statistic needs {MIN_MOVES}"
     elif not cand.detected and has_friction and ag.has_integral_action(ctx.recipe, a):
@@ -228,11 +211,11 @@ def _detect_axis(ctx, a):
         elif t_twin > cand.statistic:
             cand.statistic, cand.params["mean_offset_um"] = t_twin, offset
             cand.note += " (of the model's refitted twin without integral action)"
-            if cand.detected:   # the effect then changes the structure, which its record says
-                base, cand.search, cand.reference = twin, "wide", twin
-                cand.params["integral_action"] = False
+            twin_used = twin
+    if has_friction and not cand.not_checked:
+        cand.prepare = partial(_prepare_asymmetry, cand, ctx.recipe, a, twin_used)
     if cand.detected and has_friction:
-        cand.recipe = ag.add_asymmetry(base, a)
+        cand.prepare()
     elif cand.detected:
         cand.note += " (the axis has no sat(v / v_tilde) friction input: not tried)"
     cands.append(cand)
@@ -240,22 +223,43 @@ def _detect_axis(ctx, a):
     if tm is not None:
         t_tool = _t(tm)
         b = 2.0 * abs(float(np.mean(tm))) if tm.size else 0.0
-        cand = Candidate("backlash", a, abs(t_tool), BACKLASH_T, params={"backlash_mm": b}, search="locked",
+        cand = Candidate("backlash", a, abs(t_tool), threshold("backlash", ctx.settings), params={"backlash_mm": b}, search="locked",
                          evidence={"moves": int(tm.size)},
                          note="|t| of the direction-aligned tool-side offset over moves; backlash and the "
                               "lost motion of an elastic drive train with friction on the tool side (2 F/k) "
                               "give the same offset in position data")
         if tm.size < MIN_MOVES:
             cand.not_checked = f"the training trace has {tm.size} move(s); the t statistic needs {MIN_MOVES}"
-        if cand.detected and ag.carries_lost_motion(ctx.recipe, a):
+        carried = ag.carries_lost_motion(ctx.recipe, a)
+        if not carried and not cand.not_checked:
+            cand.prepare = partial(_prepare_backlash, cand, ctx.recipe, a)
+        if cand.detected and carried:
             cand.note += ("; not refitted: the model's friction already reaches the tool side with a d.c. "
                           "gain, the same regressor (the note 'carried' gives the lost motion it carries)")
         elif cand.detected:
-            vt = ctx.recipe.v_tilde.get(a, 1.0)
-            cand.recipe = ag.add_backlash(ctx.recipe, a, vt)
-            cand.reference = ag.add_tool_output(ctx.recipe, a)
+            cand.prepare()
         cands.append(cand)
     return cands
+
+
+def _prepare_stribeck(cand, ctx, a):
+    cand.params["v_s_mm_s"] = _best_vs(ctx, a, ctx.recipe)
+    cand.recipe = ag.add_stribeck(ctx.recipe, a, cand.params["v_s_mm_s"])
+
+
+def _prepare_asymmetry(cand, recipe, a, twin):
+    """The asymmetry's refit; on the P-loop twin when the twin's offset is the statistic (the
+    effect then changes the structure, which its record says, and the twin is its reference)."""
+    base = recipe
+    if twin is not None:
+        base, cand.search, cand.reference = twin, "wide", twin
+        cand.params["integral_action"] = False
+    cand.recipe = ag.add_asymmetry(base, a)
+
+
+def _prepare_backlash(cand, recipe, a):
+    cand.recipe = ag.add_backlash(recipe, a, recipe.v_tilde.get(a, 1.0))
+    cand.reference = ag.add_tool_output(recipe, a)
 
 
 def _moves(ev, moving, w, n):

@@ -11,22 +11,22 @@ longest segment). Parameter: lambda = 1 / kappa_peak, refined by the LS objectiv
 with sin/cos(2 pi x / lambda) inputs and the poles fixed, scanned over +-12 % of the peak in 0.2 %
 steps with a parabolic refinement (the phase coherence over the whole record makes this sharp).
 
-Threshold ``PEAK_RATIO`` (calibration: ``examples/diagnose_calibrate.py``, 15 clean virtual-drive
-runs): clean runs up to 6.4; a 40 N force of 5 mm period gives about 140. Recalibrated with the
-causal models (``examples/diagnose_calibrate.py --effects --plant2``): virtual clean up to 6.30
-(1.2 x = 7.6), virtual periodic 140; second plant (tests/plant2) clean up to 6.74 (9 runs, none
-above 15), its 40 N / 5 mm force 208: 15 separates both plants either way.
+Threshold: ``thresholds.THRESHOLDS["periodic_position"]`` (a 5 % false-alarm rate on the plant
+family's clean calibration cases). Measured on thesis-path models: virtual clean up to 6.30, its
+40 N / 5 mm force 140; plant2 clean up to 6.74 (9 runs), its 40 N / 5 mm force 208.
 """
 from __future__ import annotations
+
+from functools import partial
 
 import numpy as np
 from scipy.ndimage import median_filter
 
 from . import augment as ag
 from .base import Candidate, scan_refine
+from .thresholds import threshold
 
 SETTLE_S = 0.03
-PEAK_RATIO = 15.0
 
 
 def constant_velocity_segments(cmd, Ts, settle_s=SETTLE_S):
@@ -95,6 +95,7 @@ def position_spectrum(pairs, max_fft=2 ** 16):
 
 def detect(ctx):
     out = []
+    gate = threshold("periodic_position", ctx.settings)
     for a in ctx.model.axes:
         pairs = []
         for res in ctx.res:
@@ -104,23 +105,28 @@ def detect(ctx):
         kap, P, dx = position_spectrum(pairs)
         if kap.size < 8:
             why = "too little constant-velocity motion for a position spectrum"
-            out.append(Candidate("periodic_position", a, 0.0, PEAK_RATIO, note=why,
+            out.append(Candidate("periodic_position", a, 0.0, gate, note=why,
                                  evidence={"segments": len(pairs)}, not_checked=f"the training trace has {why}"))
             continue
         bg = median_filter(P, size=max(9, kap.size // 8) | 1, mode="nearest")
         rel = P / np.maximum(bg, 1e-300)
         i = int(np.argmax(rel))
         lam0 = float(1.0 / kap[i])
-        cand = Candidate("periodic_position", a, float(rel[i]), PEAK_RATIO,
+        cand = Candidate("periodic_position", a, float(rel[i]), gate,
                          params={"peak_period_mm": lam0, "segments": len(pairs)},
                          plot={"wavelength_mm": 1.0 / kap, "power": P, "background": bg},
                          note="peak of the residual's power over position-wavenumber over its median")
+        cand.prepare = partial(_prepare, cand, ctx, a, lam0)
         if cand.detected:
-            lam = _refine(ctx, a, lam0)
-            cand.params["period_mm"] = lam
-            cand.recipe = ag.add_periodic(ctx.recipe, a, lam)
+            cand.prepare()
         out.append(cand)
     return out
+
+
+def _prepare(cand, ctx, a, lam0):
+    lam = _refine(ctx, a, lam0)
+    cand.params["period_mm"] = lam
+    cand.recipe = ag.add_periodic(ctx.recipe, a, lam)
 
 
 def _refine(ctx, a, lam0):

@@ -280,7 +280,9 @@ def candidate_table(rounds):
     list of dict, per candidate: ``round``, ``block`` (the block's axis of a combined model, else
     None), ``kind``, ``label`` (kind and statistic), ``axis``, ``statistic``, ``threshold``,
     ``detected`` (statistic >= threshold), ``not_checked`` (why the detector could not test, or
-    ''), ``refitted`` (a trial refit was made), ``gain_train``, ``gain_val`` (fractions of RMS
+    ''), ``tried_below_threshold`` (not detected, and tried all the same because the held-out
+    residual was structured: :data:`.loop.UNEXPLAINED_SHARE`; its outcome is its trial's),
+    ``refitted`` (a trial refit was made), ``gain_train``, ``gain_val`` (fractions of RMS
     reduction per scored channel against the trial's reference, or None), ``best_gain_val``
     (the largest of ``gain_val``, or None), ``criterion_met``, ``kept``, ``implausible`` (reason,
     or ''), ``error`` (of a failed refit, or ''), ``outcome`` (one phrase: ``below threshold``,
@@ -298,7 +300,7 @@ def candidate_table(rounds):
             gv = t.get("gain_val")
             if c.get("not_checked"):
                 outcome = "not checked"
-            elif not c["detected"]:
+            elif not c["detected"] and trial is None:
                 outcome = "below threshold"
             elif trial is None:
                 outcome = "not refitted"
@@ -315,6 +317,7 @@ def candidate_table(rounds):
             out.append({"round": rnd["round"], "block": rnd.get("axis"), "kind": c["kind"], "label": label,
                         "axis": c["axis"], "statistic": c["statistic"], "threshold": c["threshold"],
                         "detected": bool(c["detected"]), "not_checked": c.get("not_checked", ""),
+                        "tried_below_threshold": bool(t.get("below_threshold")),
                         "refitted": trial is not None and not t.get("error"),
                         "gain_train": t.get("gain_train"), "gain_val": gv,
                         "best_gain_val": max(gv.values()) if gv else None,

@@ -38,3 +38,21 @@ def correlation_tests(r, u, max_lag=50):
 
 def summary(tests):
     return {k: tests[k] for k in ("band", "acf_outside", "acf_max", "xcf_outside", "xcf_max")}
+
+
+def structured_share(r):
+    """Share of a residual's variance that is not white: ``1 - w / var(r)``, with
+    ``w = mean(diff(r)^2) / 2`` the variance of its white part (for white noise
+    E[(r_k - r_{k-1})^2] = 2 var; a slow model error hardly changes from one sample to the next,
+    so the difference leaves it out). 0 for a white residual (noise the model cannot explain), near
+    1 for one a better model could follow; clipped to [0, 1]. The loop reads it on the held-out
+    trace (:data:`.loop.UNEXPLAINED_SHARE`).
+    """
+    r = np.asarray(r, float)
+    if r.size < 3:
+        return 0.0
+    var = float(np.var(r))
+    if var <= 0:
+        return 0.0
+    w = 0.5 * float(np.mean(np.diff(r) ** 2))
+    return float(min(1.0, max(0.0, 1.0 - w / var)))
