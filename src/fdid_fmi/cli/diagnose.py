@@ -40,10 +40,11 @@ def register(sub):
     p.add_argument("--max-loss", type=fraction("--max-loss"), default=0.01,
                    help="... and no scored channel rises by more than this fraction (0.01)")
     p.add_argument("--max-steps", type=int_in(0, 100, "--max-steps"), default=4, help="at most this many effects added (per axis of a combined per-axis model)")
-    p.add_argument("--search", choices=METHODS, default="vp",
-                   help="pole search of every refit: vp (variable projection: Gauss-Newton searches from the "
-                        "current poles or a Sobol screen, as fdid identify's default) or de (differential "
-                        "evolution, population 8 per coordinate: slower); default vp")
+    p.add_argument("--search", choices=METHODS, default="de",
+                   help="pole search of every refit: de (differential evolution, population 8 per "
+                        "coordinate) or vp (variable projection: Gauss-Newton searches from the current "
+                        "poles or a Sobol screen, as fdid identify's default; about half the CPU time, "
+                        "and on some runs a different effect named); default de")
     p.add_argument("--maxiter", type=int_in(1, 100000, "--maxiter"), default=25,
                    help="iterations of each refit's pole search: vp: steps of each local search; de: "
                         "generations")

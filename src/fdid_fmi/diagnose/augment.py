@@ -40,8 +40,8 @@ parameters); ``local`` the poles searched in a window around their current value
 / 2 .. x 2, natural frequencies / 1.5 .. x 1.5, damping / 3 .. x 3), new pairs in their own
 bounds; ``wide`` the default search space of the engine (a dead time moves the poles far).
 v_tilde stays at the model's value. The pole search of every refit is the recipe's ``method``
-(``identify_mimo``'s): ``vp`` (default: variable projection, Gauss-Newton from a Sobol screen and
-the start point) or ``de`` (differential evolution); ``maxiter`` counts the residual evaluations
+(``identify_mimo``'s): ``de`` (default: differential evolution) or ``vp`` (variable projection,
+Gauss-Newton from a Sobol screen and the start point); ``maxiter`` counts the residual evaluations
 of each ``vp`` local search (besides its Jacobians) or the generations of ``de``.
 """
 from __future__ import annotations
@@ -85,7 +85,7 @@ class Recipe:
                                                      # identify's default), kept through refits
     reserved: set = field(default_factory=set)       # port names new inputs must not take (the
                                                      # other blocks of a combined per-axis model)
-    method: str = "vp"                               # pole search of every refit (METHODS)
+    method: str = "de"                               # pole search of every refit (METHODS)
 
     @property
     def order(self):
@@ -106,7 +106,7 @@ class Recipe:
 METHODS = ("vp", "de")      # pole searches of a refit (identify_mimo's method)
 
 
-def recipe_from_model(model: DriveModel, reserved=(), method="vp") -> Recipe:
+def recipe_from_model(model: DriveModel, reserved=(), method="de") -> Recipe:
     """Recipe of a pole-search / MIMO model (``identification["structure"]`` must be present).
     Its refits use the pole search ``method`` (one of :data:`METHODS`).
 

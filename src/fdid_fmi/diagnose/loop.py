@@ -79,8 +79,9 @@ MIN_SAMPLES = 200       # samples of each trace the diagnosis fits or judges on 
 # effects that one more pole can imitate: they must also beat the order check's refit
 ORDER_RIVALS = ("delay", "mode")
 # below-threshold trials (module docstring): the held-out residual's structured share at or above
-# which they run, and the number per round the plant family was measured with (each one refit, and one of its reference when
-# the candidate has one, besides its own preparation, e.g. a Stribeck velocity's scan)
+# which they run, and the number per round the plant family was measured with (each trial is one
+# refit, and one of its reference when the candidate has one, besides its own preparation, e.g. a
+# Stribeck velocity's scan)
 UNEXPLAINED_SHARE = 0.5
 MAX_BELOW_TRIALS = 3
 MIN_BELOW_RATIO = 0.5   # a candidate below half its threshold is not tried
@@ -482,7 +483,7 @@ def _order_check(recipe, vel_train, train, val, maxiter):
 
 
 def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, max_loss=0.01,
-             max_steps=4, maxiter=25, exclude=(), max_delay=6, progress=None, workers=1, search="vp",
+             max_steps=4, maxiter=25, exclude=(), max_delay=6, progress=None, workers=1, search="de",
              below_trials=0, _reserved=(), _block=False, _whole=None, _refits=None) -> Diagnosis:
     """Find what the residual says the model lacks, add it, and report the error before and after.
 
@@ -505,9 +506,10 @@ def diagnose(model: DriveModel, train, val=None, detectors=None, min_gain=0.05, 
     max_delay : largest command shift tried (samples); a best shift equal to it is not named
         (:func:`.delay.shift_statistic`), so the largest dead time named is max_delay - 1
     progress : callable(str) for progress messages, optional
-    search : pole search of the refits, ``vp`` (variable projection from the current poles or a
-        Sobol screen, as ``fdid identify``'s default) or ``de`` (differential evolution, population
-        8 per coordinate)
+    search : pole search of the refits, ``de`` (default: differential evolution, population 8 per
+        coordinate) or ``vp`` (variable projection from the current poles or a Sobol screen, as
+        ``fdid identify``'s default: about half the CPU time, and on some runs a different effect
+        named, docs/decisions/diagnosis-gates.md)
     workers : processes the independent refits run in (:mod:`.refits`; None: every core; 1: in
         this process); the result is the same for any number, bit for bit when this process
         runs BLAS on one thread as the workers do (``fdid`` does: :mod:`fdid_fmi.workers`)
