@@ -14,15 +14,7 @@ from fdid_fmi.errors import InputError
 from fdid_fmi.identify import identify_quasi_static, identify_siso
 from fdid_fmi.model import DriveModel
 from fdid_fmi.trace import Trace
-
-
-def _first_order(cmd, Ts, seed=0):
-    act = np.empty(cmd.size)
-    act[0] = cmd[0]
-    a = np.exp(-Ts * 60)
-    for k in range(1, cmd.size):
-        act[k] = a * act[k - 1] + (1 - a) * cmd[k - 1]
-    return act + np.random.default_rng(seed).normal(0, 1e-5, cmd.size)
+from small_plants import first_order_lag
 
 
 def _ramp_trace(n=3000, Ts=1e-3, seed=0, source="ramp"):
@@ -30,7 +22,7 @@ def _ramp_trace(n=3000, Ts=1e-3, seed=0, source="ramp"):
     t = np.arange(n) * Ts
     tm = np.maximum(t - 0.05, 0.0)
     cmd = 10 * (1 - np.cos(2 * np.pi * 0.7 * tm)) + 2 * np.sin(2 * np.pi * 1.15 * tm) ** 2
-    return Trace.from_arrays(t, {"x": {"cmd": cmd, "act": _first_order(cmd, Ts, seed)}}, source=source)
+    return Trace.from_arrays(t, {"x": {"cmd": cmd, "act": first_order_lag(cmd, Ts, seed)}}, source=source)
 
 
 @pytest.fixture(scope="module")
@@ -173,7 +165,7 @@ def test_too_few_moves_is_not_checked_rather_than_nothing_found(small):
     t = np.arange(1500) * Ts
     tm = np.clip(t - 0.1, 0.0, 1.0)
     cmd = 20 * (tm - np.sin(2 * np.pi * tm) / (2 * np.pi))          # one move, rest to rest
-    tr = Trace.from_arrays(t, {"x": {"cmd": cmd, "act": _first_order(cmd, Ts)}}, source="one_move")
+    tr = Trace.from_arrays(t, {"x": {"cmd": cmd, "act": first_order_lag(cmd, Ts)}}, source="one_move")
     cands = {c.kind: c for c in friction.detect(_context(model, tr))}
     asym = cands["asymmetric_friction"]
     assert "1 move(s)" in asym.not_checked and not asym.detected
@@ -189,7 +181,7 @@ def test_no_command_energy_in_the_mode_band_is_not_checked(small):
     Ts = model.Ts
     t = np.arange(3000) * Ts
     cmd = 2.0 ** -7 * np.arange(3000)               # constant velocity, exactly: no acceleration at all
-    tr = Trace.from_arrays(t, {"x": {"cmd": cmd, "act": _first_order(cmd, Ts)}}, source="ramp")
+    tr = Trace.from_arrays(t, {"x": {"cmd": cmd, "act": first_order_lag(cmd, Ts)}}, source="ramp")
     (c,) = mode.detect(_context(model, tr))
     # with no command energy anywhere every bin would pass the relative energy test (0 >= 0),
     # none would be coherent, and the statistic 0 would read as "no mode"
@@ -202,7 +194,7 @@ def test_no_constant_velocity_is_not_checked_for_the_periodic_force(small):
     Ts = model.Ts
     t = np.arange(3000) * Ts
     cmd = 5 * (1 - np.cos(2 * np.pi * 0.5 * t))                      # never at constant velocity
-    tr = Trace.from_arrays(t, {"x": {"cmd": cmd, "act": _first_order(cmd, Ts)}}, source="slow")
+    tr = Trace.from_arrays(t, {"x": {"cmd": cmd, "act": first_order_lag(cmd, Ts)}}, source="slow")
     (c,) = periodic.detect(_context(model, tr))
     assert "constant-velocity" in c.not_checked and not c.detected
 
@@ -213,8 +205,8 @@ def test_diagnose_reports_the_detector_that_could_not_run(small):
     t = np.arange(1500) * Ts
     tm = np.clip(t - 0.1, 0.0, 1.0)
     cmd = 20 * (tm - np.sin(2 * np.pi * tm) / (2 * np.pi))
-    tr = Trace.from_arrays(t, {"x": {"cmd": cmd, "act": _first_order(cmd, Ts)}}, source="one_move")
-    va = Trace.from_arrays(t, {"x": {"cmd": cmd, "act": _first_order(cmd, Ts, seed=5)}}, source="one_move_val")
+    tr = Trace.from_arrays(t, {"x": {"cmd": cmd, "act": first_order_lag(cmd, Ts)}}, source="one_move")
+    va = Trace.from_arrays(t, {"x": {"cmd": cmd, "act": first_order_lag(cmd, Ts, seed=5)}}, source="one_move_val")
     d = diagnose(model, tr, va, detectors=["friction"], maxiter=2, max_steps=1)
     kinds = [(n["kind"], n["effect"]) for n in d.to_json()["notes"]]
     assert ("not_checked", "asymmetric_friction") in kinds

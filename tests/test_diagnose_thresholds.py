@@ -12,6 +12,7 @@ from fdid_fmi.diagnose.thresholds import THRESHOLDS, Threshold, key, quantile_th
 from fdid_fmi.diagnose.whiteness import structured_share
 from fdid_fmi.identify import identify_siso
 from fdid_fmi.trace import Trace
+from small_plants import first_order_lag
 
 
 def test_at_most_the_stated_share_of_clean_values_pass():
@@ -62,15 +63,6 @@ def test_structured_share_of_white_and_of_slow_residuals():
     assert structured_share(np.zeros(10)) == 0.0
 
 
-def _first_order(cmd, Ts, seed):
-    act = np.empty(cmd.size)
-    act[0] = cmd[0]
-    a = np.exp(-Ts * 60)
-    for k in range(1, cmd.size):
-        act[k] = a * act[k - 1] + (1 - a) * cmd[k - 1]
-    return act + np.random.default_rng(seed).normal(0, 1e-5, cmd.size)
-
-
 def _trace(seed, n=3000, Ts=1e-3):
     """A smooth back-and-forth command, a first-order-lag measurement and a channel that does not
     act on it (a candidate input whose R^2 is small)."""
@@ -78,7 +70,7 @@ def _trace(seed, n=3000, Ts=1e-3):
     tm = np.maximum(t - 0.05, 0.0)
     cmd = 10 * (1 - np.cos(2 * np.pi * 0.7 * tm)) + 2 * np.sin(2 * np.pi * 1.15 * tm) ** 2
     load = np.random.default_rng(seed + 10).normal(size=n).cumsum()
-    return Trace.from_arrays(t, {"x": {"cmd": cmd, "act": _first_order(cmd, Ts, seed)}}, extra={"x_load_N": load},
+    return Trace.from_arrays(t, {"x": {"cmd": cmd, "act": first_order_lag(cmd, Ts, seed)}}, extra={"x_load_N": load},
                              source=f"ramp{seed}")
 
 
