@@ -36,7 +36,7 @@ from fdid_fmi.simulate import simulate  # noqa: E402
 from fdid_fmi.trace import Channel, Trace  # noqa: E402
 from fdid_fmi.virtual import MachineConfig, presets, simulate_machine  # noqa: E402
 from fdid_fmi.virtual import trajectories as tj  # noqa: E402
-from publish import command, md_table, publish, publishable  # noqa: E402
+from publish import command, md_table, publish, publishable, report  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / "results"
 EMPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "emps"
@@ -216,11 +216,7 @@ def main():
         return
     res = {"label": a.label, **run()}
     out = Path(a.out) if a.out else OUT / f"bench_accuracy_{a.label}.json"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(res, indent=1))
-    for t in tables(res):
-        print(t + "\n")
-    print(f"written {out}")
+    report(out, res, tables(res))
     if publishable(ap, a):
         publish("accuracy", "Accuracy and sensitivity to the commands", tables(res), command("accuracy"), res,
                 notes=NOTES)

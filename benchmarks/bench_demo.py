@@ -24,7 +24,7 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from publish import command, md_table, publish, publishable  # noqa: E402
+from publish import command, md_table, publish, publishable, report  # noqa: E402
 from timing import code_state  # noqa: E402
 
 OUT = HERE / "results" / "bench_demo.json"
@@ -65,11 +65,7 @@ def main(argv=None):
            "fmu_max_abs_diff_mm": {n: v["max_abs_diff_reference_mm"] for n, v in summary["validation"].items()},
            "fmu_problems": {n: v["problems"] for n, v in summary["validation"].items()},
            "runs": runs}
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    OUT.write_text(json.dumps(res, indent=1))
-    for t in tables(res):
-        print(t + "\n")
-    print(f"written {OUT}")
+    report(OUT, res, tables(res))
     if publishable(ap, a):
         publish("demo", "The demo: accuracy, FMU against the model, time", tables(res), command("demo"), res,
                 state=state, notes=NOTES)

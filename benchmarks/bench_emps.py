@@ -39,7 +39,6 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(var, "1")
 
 import argparse  # noqa: E402
-import json  # noqa: E402
 import platform  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
@@ -52,7 +51,7 @@ from fdid_fmi.identify import (identify_full_ls, identify_mimo, identify_quasi_s
                                identify_siso, mimo_structure)
 from fdid_fmi.io import read_trace  # noqa: E402
 from fdid_fmi.simulate import simulate  # noqa: E402
-from publish import command, md_table, publish, publishable  # noqa: E402
+from publish import command, md_table, publish, publishable, report  # noqa: E402
 from timing import code_state, cpu_s  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / "results" / "bench_emps.json"
@@ -227,12 +226,8 @@ def main():
            "rows": rows, "narx_settings": settings, "cpu_s": time.process_time() - c0,
            "wall_s": time.perf_counter() - w0, "python": platform.python_version(),
            "numpy": np.__version__, "code": state}
-    a.out.parent.mkdir(parents=True, exist_ok=True)
-    a.out.write_text(json.dumps(res, indent=1))
-    print()
-    for t in tables(res):
-        print(t + "\n")
-    print(f"CPU {res['cpu_s']:.0f} s, wall {res['wall_s']:.0f} s; written {a.out}")
+    print(f"\nCPU {res['cpu_s']:.0f} s, wall {res['wall_s']:.0f} s\n")
+    report(a.out, res, tables(res))
     if publishable(ap, a):
         publish("emps", "EMPS (real data): accuracy against baselines and a peer", tables(res), command("emps"),
                 res, state=state, notes=NOTES)

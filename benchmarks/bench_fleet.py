@@ -18,7 +18,6 @@ from the data); ``rigid`` fixes the thesis's rigid-body structure.
 from __future__ import annotations
 
 import argparse
-import json
 import platform
 import resource
 import sys
@@ -30,7 +29,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from publish import command, md_table, publish, publishable  # noqa: E402
+from publish import command, md_table, publish, publishable, report  # noqa: E402
 from timing import timed  # noqa: E402
 
 from fdid_fmi.fleet import run_fleet  # noqa: E402
@@ -74,11 +73,7 @@ def main(argv=None):
            "structure": args.structure, "diagnose": not args.no_diagnose, "rows": rows,
            "note": "wall time of whole runs on a shared 2-core machine; per-stage times are means over "
                    "the entries (each entry's stages run one after the other in one worker)"}
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    OUT.write_text(json.dumps(res, indent=1))
-    for t in tables(res):
-        print(t + "\n")
-    print(f"results written to {OUT}")
+    report(OUT, res, tables(res))
     if publishable(ap, args):
         publish("fleet", "Fleet throughput", tables(res), command("fleet"), res, notes=NOTES)
     return 0

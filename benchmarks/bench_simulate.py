@@ -24,7 +24,6 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(var, "1")
 
 import argparse  # noqa: E402
-import json  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -37,7 +36,7 @@ sys.path.insert(0, str(HERE.parent / "tests"))          # the oracle and the han
 import fmu_support as fs  # noqa: E402
 from fdid_fmi.simulate import simulate  # noqa: E402
 from sim_oracle import oracle_simulate  # noqa: E402
-from publish import command, md_table, publish, publishable  # noqa: E402
+from publish import command, md_table, publish, publishable, report  # noqa: E402
 from timing import timed  # noqa: E402
 
 OUT = HERE / "results" / "bench_simulate.json"
@@ -78,11 +77,7 @@ def main():
                          compiled_cpu_samples_per_s=n_fast / c_c, python_cpu_samples_per_s=n_slow / c_py,
                          identical_outputs=same))
     res = {"rows": rows, "quick": a.quick}
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    OUT.write_text(json.dumps(res, indent=2))
-    for t in tables(res):
-        print(t)
-    print(f"wrote {OUT}")
+    report(OUT, res, tables(res))
     if publishable(ap, a):
         publish("simulate", "Simulation speed", tables(res), command("simulate"), res,
                 notes="Samples per second of the free run through `fdid_fmi.simulate.simulate` (the compiled "

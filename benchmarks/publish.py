@@ -79,6 +79,18 @@ def _atomic(path, text):
     os.replace(tmp, path)
 
 
+def report(path, data, tables):
+    """A benchmark's own output: ``data`` as JSON at ``path`` (written atomically, its folder made),
+    then ``tables`` (markdown strings) and the path printed."""
+    import json
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    _atomic(path, json.dumps(data, indent=1))
+    for t in tables:
+        print(t + "\n")
+    print(f"written {path}")
+
+
 def publish(name, title, tables, cmd, data, notes="", state=None, folder=None):
     """Write ``docs/results/<name>.md`` and ``docs/results/<name>.json`` atomically.
 
